@@ -1,0 +1,2 @@
+//! The MDP that picks, from classifier confidence, the cheapest good-enough variant.
+#![deny(missing_docs)]

@@ -1,0 +1,1 @@
+//! End-to-end tests of the `frugal` binary on tiny configurations.
