@@ -1,1 +1,2 @@
-//! End-to-end tests of the `frugal` binary on tiny configurations.
+//! End-to-end tests of the `frugal` CLI on tiny configurations, run in process through
+//! [`frugal::run`]. One module per pipeline stage, in `tests/cli/`.

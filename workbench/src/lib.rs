@@ -1,0 +1,55 @@
+//! `frugal`: the workbench CLI. One subcommand per pipeline stage; each stage's
+//! arguments and glue live in a module of the same name. The binary (`main.rs`) only
+//! calls [`main_from`]; the end-to-end tests in `tests/` call [`run`] in process.
+#![deny(missing_docs)]
+use clap::{Parser, Subcommand};
+use std::ffi::OsString;
+
+/// frugal: fast-enough sign detection for small drones.
+///
+/// The pipeline runs data → train → compress → pareto → policy → bundle → fly; each
+/// stage has its own subcommand, and `frugal run` runs them all in one run folder.
+#[derive(Parser)]
+#[command(name = "frugal", version, about, long_about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {}
+
+/// Parse `args` (the first is the program name) and run the subcommand.
+///
+/// `--help` and `--version` come back as a [`clap::Error`] inside the result, like
+/// any other parse outcome; [`main_from`] prints them.
+pub fn run<I, T>(args: I) -> anyhow::Result<()>
+where
+    I: IntoIterator<Item = T>,
+    T: Into<OsString> + Clone,
+{
+    let cli = Cli::try_parse_from(args)?;
+    match cli.command {}
+}
+
+/// Run the CLI and turn the outcome into a process exit code: 0 on success, 2 for a
+/// usage error, 1 for any other error, printed as one line on stderr.
+pub fn main_from<I, T>(args: I) -> u8
+where
+    I: IntoIterator<Item = T>,
+    T: Into<OsString> + Clone,
+{
+    match run(args) {
+        Ok(()) => 0,
+        Err(err) => match err.downcast_ref::<clap::Error>() {
+            Some(clap_err) => {
+                let _ = clap_err.print();
+                if clap_err.use_stderr() { 2 } else { 0 }
+            }
+            None => {
+                eprintln!("error: {err:#}");
+                1
+            }
+        },
+    }
+}
