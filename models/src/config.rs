@@ -1,0 +1,302 @@
+//! Model and training configuration: serde structs with built-in defaults, read from
+//! TOML or JSON (unknown fields are rejected), saved as JSON next to every checkpoint.
+use crate::ModelError;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// One backbone block: `convs` 3×3 convolutions + ReLU, the first with `stride`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BlockConfig {
+    /// Output channels of every conv in the block.
+    pub out_channels: i64,
+    /// Stride of the first conv (1 or 2).
+    pub stride: i64,
+    /// Number of 3×3 convs (at least 1).
+    pub convs: usize,
+}
+
+/// The detector's structure and its fixed pre/post-processing parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ModelConfig {
+    /// Number of object classes (background excluded).
+    pub num_classes: usize,
+    /// Backbone blocks, input to output; the feature stride is the product of strides.
+    pub backbone: Vec<BlockConfig>,
+    /// Channels of the RPN's shared 3×3 conv.
+    pub rpn_channels: i64,
+    /// Anchor sizes in pixels (square root of the area).
+    pub anchor_sizes: Vec<f32>,
+    /// Anchor aspect ratios `h / w`.
+    pub anchor_ratios: Vec<f32>,
+    /// RoIAlign output side (`roi_size × roi_size`).
+    pub roi_size: i64,
+    /// RoIAlign sampling points per bin side (fixed, as in ONNX `sampling_ratio`).
+    pub roi_sampling_ratio: i64,
+    /// Width of the RoI head's two hidden FC layers.
+    pub roi_hidden: i64,
+    /// Per-channel mean subtracted from pixels in `[0, 1]` (RGB).
+    pub pixel_mean: [f32; 3],
+    /// Per-channel standard deviation pixels are divided by (RGB).
+    pub pixel_std: [f32; 3],
+    /// Proposals kept before the RPN's NMS at inference.
+    pub pre_nms_test: usize,
+    /// Proposals kept after the RPN's NMS at inference.
+    pub post_nms_test: usize,
+    /// Proposals kept before the RPN's NMS in training.
+    pub pre_nms_train: usize,
+    /// Proposals kept after the RPN's NMS in training.
+    pub post_nms_train: usize,
+    /// IoU threshold of the RPN's NMS.
+    pub rpn_nms_iou: f32,
+    /// Proposals narrower or shorter than this (pixels) are dropped.
+    pub min_box_size: f32,
+    /// Detections scoring below this are dropped.
+    pub score_threshold: f32,
+    /// IoU threshold of the final per-class NMS.
+    pub nms_iou: f32,
+    /// At most this many detections per image.
+    pub max_detections: usize,
+}
+
+impl Default for ModelConfig {
+    fn default() -> Self {
+        let block = |out_channels, convs| BlockConfig {
+            out_channels,
+            stride: 2,
+            convs,
+        };
+        Self {
+            num_classes: 10,
+            backbone: vec![block(32, 1), block(64, 1), block(128, 2), block(256, 1)],
+            rpn_channels: 128,
+            anchor_sizes: vec![16.0, 32.0, 64.0],
+            anchor_ratios: vec![0.5, 1.0, 2.0],
+            roi_size: 7,
+            roi_sampling_ratio: 2,
+            roi_hidden: 256,
+            pixel_mean: [0.485, 0.456, 0.406],
+            pixel_std: [0.229, 0.224, 0.225],
+            pre_nms_test: 600,
+            post_nms_test: 50,
+            pre_nms_train: 1000,
+            post_nms_train: 200,
+            rpn_nms_iou: 0.7,
+            min_box_size: 2.0,
+            score_threshold: 0.05,
+            nms_iou: 0.5,
+            max_detections: 20,
+        }
+    }
+}
+
+impl ModelConfig {
+    /// The backbone's total stride (feature-map cell size in pixels).
+    pub fn stride(&self) -> i64 {
+        self.backbone.iter().map(|b| b.stride).product()
+    }
+
+    /// Anchors per feature-map cell.
+    pub fn anchors_per_cell(&self) -> usize {
+        self.anchor_sizes.len() * self.anchor_ratios.len()
+    }
+
+    /// Channels of the feature map the RoI head reads.
+    pub fn feature_channels(&self) -> i64 {
+        self.backbone.last().map_or(3, |b| b.out_channels)
+    }
+
+    /// Check the structure makes sense; `what` names the file or source for errors.
+    pub fn validate(&self, what: &str) -> Result<(), ModelError> {
+        let bad = |msg: String| {
+            Err(ModelError::Config {
+                file: what.to_string(),
+                msg,
+            })
+        };
+        if self.num_classes == 0 {
+            return bad("num_classes must be at least 1".into());
+        }
+        if self.backbone.is_empty() {
+            return bad("backbone needs at least one block".into());
+        }
+        for (i, b) in self.backbone.iter().enumerate() {
+            if b.out_channels < 1 || !(1..=2).contains(&b.stride) || b.convs == 0 {
+                return bad(format!(
+                    "backbone block {i}: out_channels >= 1, stride 1 or 2 and convs >= 1 required"
+                ));
+            }
+        }
+        if self.anchor_sizes.is_empty() || self.anchor_ratios.is_empty() {
+            return bad("anchor_sizes and anchor_ratios must not be empty".into());
+        }
+        if self
+            .anchor_sizes
+            .iter()
+            .chain(&self.anchor_ratios)
+            .any(|v| !(*v > 0.0))
+        {
+            return bad("anchor sizes and ratios must be positive".into());
+        }
+        if self.roi_size < 1 || self.roi_sampling_ratio < 1 || self.roi_hidden < 1 {
+            return bad("roi_size, roi_sampling_ratio and roi_hidden must be >= 1".into());
+        }
+        if self.rpn_channels < 1 || self.pixel_std.iter().any(|s| !(*s > 0.0)) {
+            return bad("rpn_channels and pixel_std must be positive".into());
+        }
+        if self.post_nms_test == 0 || self.post_nms_train == 0 || self.max_detections == 0 {
+            return bad("proposal and detection counts must be >= 1".into());
+        }
+        Ok(())
+    }
+}
+
+/// The optimizer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OptimizerKind {
+    /// SGD with momentum 0.9 and L2 weight decay.
+    Sgd,
+    /// AdamW (β = 0.9, 0.999) with decoupled weight decay.
+    AdamW,
+}
+
+/// Training hyper-parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrainConfig {
+    /// Seed of weight init (`tch::manual_seed`) and data order (ChaCha).
+    pub seed: u64,
+    /// Passes over the training split.
+    pub epochs: usize,
+    /// Images per optimizer step.
+    pub batch_size: usize,
+    /// The optimizer.
+    pub optimizer: OptimizerKind,
+    /// Peak learning rate.
+    pub lr: f64,
+    /// Weight decay.
+    pub weight_decay: f64,
+    /// Linear warm-up steps from `lr / 10` to `lr`.
+    pub warmup_steps: usize,
+    /// Cosine decay to `lr * final_lr_fraction` at the last step.
+    pub final_lr_fraction: f64,
+    /// Anchors sampled per image for the RPN loss.
+    pub rpn_batch: usize,
+    /// Largest share of foreground among sampled anchors.
+    pub rpn_fg_fraction: f64,
+    /// RoIs sampled per image for the RoI head loss.
+    pub roi_batch: usize,
+    /// Largest share of foreground among sampled RoIs.
+    pub roi_fg_fraction: f64,
+    /// Brightness factor drawn in `[1 - b, 1 + b]`.
+    pub brightness: f32,
+    /// Largest Gaussian noise σ (pixels in `[0, 1]`).
+    pub noise: f32,
+    /// Probability of a 3×3 Gaussian blur.
+    pub blur_prob: f64,
+    /// Validation frames scored per epoch (0 = the whole split).
+    pub val_frames: usize,
+    /// Training frames used per epoch (0 = the whole split).
+    pub train_frames: usize,
+    /// Intra-op threads for libtorch (0 = libtorch's default).
+    pub threads: usize,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        Self {
+            seed: 7,
+            epochs: 6,
+            batch_size: 4,
+            optimizer: OptimizerKind::AdamW,
+            lr: 1e-3,
+            weight_decay: 1e-4,
+            warmup_steps: 100,
+            final_lr_fraction: 0.02,
+            rpn_batch: 256,
+            rpn_fg_fraction: 0.5,
+            roi_batch: 64,
+            roi_fg_fraction: 0.25,
+            brightness: 0.3,
+            noise: 0.03,
+            blur_prob: 0.2,
+            val_frames: 300,
+            train_frames: 0,
+            threads: 0,
+        }
+    }
+}
+
+/// The whole configuration: model structure and training hyper-parameters.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Config {
+    /// The detector.
+    pub model: ModelConfig,
+    /// Its training.
+    pub train: TrainConfig,
+}
+
+impl Config {
+    /// Read a TOML (`.toml`) or JSON (anything else) config file; missing fields take
+    /// their defaults, unknown fields are an error naming the file.
+    pub fn load(path: &Path) -> Result<Self, ModelError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ModelError::io(path, e))?;
+        let file = path.display().to_string();
+        let cfg: Config = if path.extension().is_some_and(|e| e == "toml") {
+            toml::from_str(&text).map_err(|e| ModelError::Config {
+                file: file.clone(),
+                msg: e.to_string(),
+            })?
+        } else {
+            serde_json::from_str(&text).map_err(|e| ModelError::Config {
+                file: file.clone(),
+                msg: e.to_string(),
+            })?
+        };
+        cfg.validate(&file)?;
+        Ok(cfg)
+    }
+
+    /// Check both parts; `what` names the source for errors.
+    pub fn validate(&self, what: &str) -> Result<(), ModelError> {
+        self.model.validate(what)?;
+        let t = &self.train;
+        if t.epochs == 0 || t.batch_size == 0 || t.rpn_batch == 0 || t.roi_batch == 0 {
+            return Err(ModelError::Config {
+                file: what.to_string(),
+                msg: "epochs, batch_size, rpn_batch and roi_batch must be >= 1".into(),
+            });
+        }
+        if !(t.lr > 0.0) {
+            return Err(ModelError::Config {
+                file: what.to_string(),
+                msg: "lr must be positive".into(),
+            });
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn defaults_round_trip_and_unknown_fields_are_rejected() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("c.json");
+        std::fs::write(&p, serde_json::to_string(&Config::default()).unwrap()).unwrap();
+        assert_eq!(Config::load(&p).unwrap(), Config::default());
+        let t = dir.path().join("c.toml");
+        std::fs::write(&t, "[train]\nepochs = 3\n[model]\nroi_size = 5\n").unwrap();
+        let c = Config::load(&t).unwrap();
+        assert_eq!((c.train.epochs, c.model.roi_size), (3, 5));
+        std::fs::write(&t, "[train]\nepoch = 3\n").unwrap();
+        let err = Config::load(&t).unwrap_err().to_string();
+        assert!(err.contains("c.toml") && err.contains("epoch"), "{err}");
+        assert_eq!(ModelConfig::default().stride(), 16);
+    }
+}

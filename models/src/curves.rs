@@ -1,0 +1,114 @@
+//! Training curves: `curves.csv` and a two-panel plot (losses, validation mAP per
+//! epoch) as `curves.png` and `curves.svg`.
+use crate::ModelError;
+use crate::train::EpochRecord;
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::path::Path;
+
+fn plot_err(path: &Path, e: impl std::fmt::Display) -> ModelError {
+    ModelError::Io {
+        file: path.display().to_string(),
+        source: std::io::Error::other(e.to_string()),
+    }
+}
+
+fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, h: &[EpochRecord]) -> Result<(), String> {
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let (left, right) = root.split_horizontally(560);
+    let n = h.len().max(2) as f64;
+    let ymax = h.iter().map(|r| r.loss).fold(0.1f64, f64::max) * 1.1;
+    let mut c = ChartBuilder::on(&left)
+        .caption("training losses", ("sans-serif", 20))
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(50)
+        .build_cartesian_2d(1f64..n, 0f64..ymax)
+        .map_err(|e| e.to_string())?;
+    c.configure_mesh()
+        .x_desc("epoch")
+        .y_desc("loss")
+        .draw()
+        .map_err(|e| e.to_string())?;
+    let series: [(&str, fn(&EpochRecord) -> f64, RGBColor); 5] = [
+        ("total", |r| r.loss, BLACK),
+        ("rpn objectness", |r| r.rpn_objectness, BLUE),
+        ("rpn box", |r| r.rpn_box, CYAN),
+        ("roi class", |r| r.roi_class, RED),
+        ("roi box", |r| r.roi_box, MAGENTA),
+    ];
+    for (name, f, color) in series {
+        c.draw_series(LineSeries::new(
+            h.iter().map(|r| (r.epoch as f64, f(r))),
+            color.stroke_width(2),
+        ))
+        .map_err(|e| e.to_string())?
+        .label(name)
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+    }
+    c.configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| e.to_string())?;
+    let mut m = ChartBuilder::on(&right)
+        .caption("validation mAP@0.5", ("sans-serif", 20))
+        .margin(10)
+        .x_label_area_size(35)
+        .y_label_area_size(50)
+        .build_cartesian_2d(1f64..n, 0f64..1f64)
+        .map_err(|e| e.to_string())?;
+    m.configure_mesh()
+        .x_desc("epoch")
+        .y_desc("mAP")
+        .draw()
+        .map_err(|e| e.to_string())?;
+    m.draw_series(LineSeries::new(
+        h.iter().map(|r| (r.epoch as f64, r.val_map)),
+        GREEN.stroke_width(2),
+    ))
+    .map_err(|e| e.to_string())?;
+    m.draw_series(
+        h.iter()
+            .map(|r| Circle::new((r.epoch as f64, r.val_map), 4, GREEN.filled())),
+    )
+    .map_err(|e| e.to_string())?;
+    root.present().map_err(|e| e.to_string())
+}
+
+/// Write `curves.csv`, `curves.png` and `curves.svg` into `dir` (temp file + rename).
+pub fn write(dir: &Path, history: &[EpochRecord]) -> Result<(), ModelError> {
+    let mut csv = String::from(
+        "epoch,step,loss,rpn_objectness,rpn_box,roi_class,roi_box,val_map,lr,seconds\n",
+    );
+    for r in history {
+        csv.push_str(&format!(
+            "{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.3e},{:.1}\n",
+            r.epoch,
+            r.step,
+            r.loss,
+            r.rpn_objectness,
+            r.rpn_box,
+            r.roi_class,
+            r.roi_box,
+            r.val_map,
+            r.lr,
+            r.seconds
+        ));
+    }
+    let p = dir.join("curves.csv");
+    let tmp = dir.join(".tmp-curves.csv");
+    std::fs::write(&tmp, csv).map_err(|e| ModelError::io(&tmp, e))?;
+    std::fs::rename(&tmp, &p).map_err(|e| ModelError::io(&p, e))?;
+    let size = (1100, 420);
+    let png = dir.join("curves.png");
+    let tmp = dir.join(".tmp-curves.png");
+    draw(BitMapBackend::new(&tmp, size).into_drawing_area(), history)
+        .map_err(|e| plot_err(&png, e))?;
+    std::fs::rename(&tmp, &png).map_err(|e| ModelError::io(&png, e))?;
+    let svg = dir.join("curves.svg");
+    let tmp = dir.join(".tmp-curves.svg");
+    draw(SVGBackend::new(&tmp, size).into_drawing_area(), history)
+        .map_err(|e| plot_err(&svg, e))?;
+    std::fs::rename(&tmp, &svg).map_err(|e| ModelError::io(&svg, e))
+}

@@ -1,0 +1,361 @@
+//! Detection metrics in plain Rust on [`Detection`] / [`BBox`] (no `tch`): average
+//! precision at an IoU threshold (all-point interpolation as in PASCAL VOC 2010+, or
+//! COCO's 101-point interpolation), precision / recall / F1 at a score threshold, the
+//! mean IoU of matched detections and a confusion matrix.
+//!
+//! Matching follows COCO: per class, detections are taken by descending score (stable
+//! over the image order) and each takes the unmatched ground-truth box of its class in
+//! its image with the highest IoU, if that IoU is at least the threshold.
+use frugal_runtime::{BBox, ClassId, Detection};
+use serde::Serialize;
+
+/// One ground-truth object.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Truth {
+    /// Its class.
+    pub class: ClassId,
+    /// Its box.
+    pub bbox: BBox,
+}
+
+/// Detections and ground truth of one image.
+#[derive(Clone, Debug, Default)]
+pub struct ImageResult {
+    /// What the detector found.
+    pub detections: Vec<Detection>,
+    /// What is there.
+    pub truth: Vec<Truth>,
+}
+
+/// How precision is interpolated over recall.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Interpolation {
+    /// Area under the monotone precision envelope (VOC 2010+).
+    AllPoint,
+    /// Mean envelope precision at recall 0, 0.01, …, 1 (COCO).
+    Coco101,
+}
+
+/// Greedy COCO matching of `dets` (indices into `image.detections`, sorted by score)
+/// against the truth of class `class` (or any class when `None`): `(det, truth, iou)`.
+fn match_image(
+    image: &ImageResult,
+    dets: &[usize],
+    class: Option<ClassId>,
+    iou_thr: f32,
+) -> Vec<(usize, usize, f32)> {
+    let mut used = vec![false; image.truth.len()];
+    let mut out = Vec::new();
+    for &d in dets {
+        let db = image.detections[d].bbox;
+        let mut best: Option<(usize, f32)> = None;
+        for (g, t) in image.truth.iter().enumerate() {
+            if used[g] || class.is_some_and(|c| c != t.class) {
+                continue;
+            }
+            let iou = db.iou(&t.bbox);
+            if iou >= iou_thr && best.is_none_or(|(_, b)| iou > b) {
+                best = Some((g, iou));
+            }
+        }
+        if let Some((g, iou)) = best {
+            used[g] = true;
+            out.push((d, g, iou));
+        }
+    }
+    out
+}
+
+/// Average precision of one class at IoU `iou_thr`; `None` when the class has no
+/// ground truth in `images`.
+pub fn average_precision(
+    images: &[ImageResult],
+    class: ClassId,
+    iou_thr: f32,
+    interp: Interpolation,
+) -> Option<f64> {
+    let n_truth: usize = images
+        .iter()
+        .map(|im| im.truth.iter().filter(|t| t.class == class).count())
+        .sum();
+    if n_truth == 0 {
+        return None;
+    }
+    // (score, is_tp) over all images
+    let mut scored: Vec<(f32, bool)> = Vec::new();
+    for im in images {
+        let mut dets: Vec<usize> = (0..im.detections.len())
+            .filter(|&i| im.detections[i].class == class)
+            .collect();
+        dets.sort_by(|&a, &b| im.detections[b].score.total_cmp(&im.detections[a].score));
+        let matched = match_image(im, &dets, Some(class), iou_thr);
+        for &d in &dets {
+            scored.push((im.detections[d].score, matched.iter().any(|m| m.0 == d)));
+        }
+    }
+    scored.sort_by(|a, b| b.0.total_cmp(&a.0)); // stable: ties keep image order
+    let (mut tp, mut fp) = (0usize, 0usize);
+    let mut rec = Vec::with_capacity(scored.len());
+    let mut prec = Vec::with_capacity(scored.len());
+    for (_, hit) in &scored {
+        if *hit {
+            tp += 1
+        } else {
+            fp += 1
+        }
+        rec.push(tp as f64 / n_truth as f64);
+        prec.push(tp as f64 / (tp + fp) as f64);
+    }
+    // monotone envelope from the right
+    for i in (0..prec.len().saturating_sub(1)).rev() {
+        prec[i] = prec[i].max(prec[i + 1]);
+    }
+    Some(match interp {
+        Interpolation::AllPoint => {
+            let mut ap = 0.0;
+            let mut last_r = 0.0;
+            for (r, p) in rec.iter().zip(&prec) {
+                ap += (r - last_r) * p;
+                last_r = *r;
+            }
+            ap
+        }
+        Interpolation::Coco101 => {
+            let mut sum = 0.0;
+            for k in 0..=100 {
+                let t = k as f64 / 100.0;
+                // first index with rec >= t (numpy searchsorted, side left)
+                if let Some(i) = rec.iter().position(|&r| r >= t) {
+                    sum += prec[i];
+                }
+            }
+            sum / 101.0
+        }
+    })
+}
+
+/// Everything [`evaluate`] measures.
+#[derive(Clone, Debug, Serialize)]
+pub struct Summary {
+    /// Mean of the per-class APs over classes that have ground truth.
+    pub map: f64,
+    /// AP per class (`None` = no ground truth of that class).
+    pub ap_per_class: Vec<Option<f64>>,
+    /// Score threshold of the counts below.
+    pub score_threshold: f32,
+    /// Matched detections (right class, IoU ≥ threshold) at the score threshold.
+    pub true_positives: usize,
+    /// Unmatched detections at the score threshold.
+    pub false_positives: usize,
+    /// Unmatched ground truth at the score threshold.
+    pub false_negatives: usize,
+    /// `tp / (tp + fp)` (1 when there are no detections).
+    pub precision: f64,
+    /// `tp / (tp + fn)` (1 when there is no ground truth).
+    pub recall: f64,
+    /// Harmonic mean of precision and recall.
+    pub f1: f64,
+    /// Mean IoU of the true positives (0 when none).
+    pub mean_iou: f64,
+    /// `(K+1) × (K+1)` counts: row = true class, column = predicted class, index `K`
+    /// = background (a missed object is in column `K`, a spurious detection in row
+    /// `K`). Class-agnostic matching at the IoU threshold, detections above the score
+    /// threshold.
+    pub confusion: Vec<Vec<usize>>,
+    /// Number of images.
+    pub images: usize,
+}
+
+/// Per-image true positives, false positives, false negatives at a score threshold.
+pub fn image_counts(image: &ImageResult, iou_thr: f32, score_thr: f32) -> (usize, usize, usize) {
+    let mut tp = 0;
+    let mut n_det = 0;
+    let classes: std::collections::BTreeSet<ClassId> =
+        image.detections.iter().map(|d| d.class).collect();
+    for c in classes {
+        let mut dets: Vec<usize> = (0..image.detections.len())
+            .filter(|&i| image.detections[i].class == c && image.detections[i].score >= score_thr)
+            .collect();
+        dets.sort_by(|&a, &b| {
+            image.detections[b]
+                .score
+                .total_cmp(&image.detections[a].score)
+        });
+        n_det += dets.len();
+        tp += match_image(image, &dets, Some(c), iou_thr).len();
+    }
+    (tp, n_det - tp, image.truth.len() - tp)
+}
+
+/// All metrics over `images` with `num_classes` classes.
+pub fn evaluate(
+    images: &[ImageResult],
+    num_classes: usize,
+    iou_thr: f32,
+    score_thr: f32,
+    interp: Interpolation,
+) -> Summary {
+    let ap_per_class: Vec<Option<f64>> = (0..num_classes)
+        .map(|c| average_precision(images, c as ClassId, iou_thr, interp))
+        .collect();
+    let present: Vec<f64> = ap_per_class.iter().flatten().copied().collect();
+    let map = if present.is_empty() {
+        0.0
+    } else {
+        present.iter().sum::<f64>() / present.len() as f64
+    };
+    let (mut tp, mut fp, mut fneg) = (0, 0, 0);
+    let mut iou_sum = 0.0;
+    let k = num_classes;
+    let mut confusion = vec![vec![0usize; k + 1]; k + 1];
+    for im in images {
+        let (t, f, n) = image_counts(im, iou_thr, score_thr);
+        tp += t;
+        fp += f;
+        fneg += n;
+        // mean IoU over class-aware matches
+        for c in 0..k as ClassId {
+            let mut dets: Vec<usize> = (0..im.detections.len())
+                .filter(|&i| im.detections[i].class == c && im.detections[i].score >= score_thr)
+                .collect();
+            dets.sort_by(|&a, &b| im.detections[b].score.total_cmp(&im.detections[a].score));
+            iou_sum += match_image(im, &dets, Some(c), iou_thr)
+                .iter()
+                .map(|m| f64::from(m.2))
+                .sum::<f64>();
+        }
+        // class-agnostic confusion
+        let mut dets: Vec<usize> = (0..im.detections.len())
+            .filter(|&i| im.detections[i].score >= score_thr)
+            .collect();
+        dets.sort_by(|&a, &b| im.detections[b].score.total_cmp(&im.detections[a].score));
+        let m = match_image(im, &dets, None, iou_thr);
+        for &(d, g, _) in &m {
+            let (tc, pc) = (im.truth[g].class as usize, im.detections[d].class as usize);
+            if tc < k && pc < k {
+                confusion[tc][pc] += 1;
+            }
+        }
+        for (g, t) in im.truth.iter().enumerate() {
+            if !m.iter().any(|x| x.1 == g) && (t.class as usize) < k {
+                confusion[t.class as usize][k] += 1;
+            }
+        }
+        for &d in &dets {
+            if !m.iter().any(|x| x.0 == d) && (im.detections[d].class as usize) < k {
+                confusion[k][im.detections[d].class as usize] += 1;
+            }
+        }
+    }
+    let precision = if tp + fp == 0 {
+        1.0
+    } else {
+        tp as f64 / (tp + fp) as f64
+    };
+    let recall = if tp + fneg == 0 {
+        1.0
+    } else {
+        tp as f64 / (tp + fneg) as f64
+    };
+    let f1 = if precision + recall > 0.0 {
+        2.0 * precision * recall / (precision + recall)
+    } else {
+        0.0
+    };
+    Summary {
+        map,
+        ap_per_class,
+        score_threshold: score_thr,
+        true_positives: tp,
+        false_positives: fp,
+        false_negatives: fneg,
+        precision,
+        recall,
+        f1,
+        mean_iou: if tp == 0 { 0.0 } else { iou_sum / tp as f64 },
+        confusion,
+        images: images.len(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn det(x: f32, score: f32, class: ClassId) -> Detection {
+        Detection {
+            bbox: BBox::from_xywh(x, 0.0, 10.0, 10.0),
+            score,
+            class,
+        }
+    }
+    fn truth(x: f32, class: ClassId) -> Truth {
+        Truth {
+            class,
+            bbox: BBox::from_xywh(x, 0.0, 10.0, 10.0),
+        }
+    }
+
+    #[test]
+    fn hand_computed_all_point_ap() {
+        // class 0: 3 objects. Ranked: TP (0.9), FP (0.8), TP (0.7), FP (0.6); one missed.
+        // rec/prec: (1/3, 1), (1/3, 1/2), (2/3, 2/3), (2/3, 1/2)
+        // envelope: 1, 2/3, 2/3, 1/2 → AP = 1/3·1 + 1/3·2/3 = 5/9
+        let images = vec![
+            ImageResult {
+                detections: vec![det(0.0, 0.9, 0), det(50.0, 0.8, 0)],
+                truth: vec![truth(0.0, 0), truth(100.0, 0)],
+            },
+            ImageResult {
+                detections: vec![det(1.0, 0.7, 0), det(30.0, 0.6, 0)],
+                truth: vec![truth(0.0, 0)],
+            },
+        ];
+        let ap = average_precision(&images, 0, 0.5, Interpolation::AllPoint).unwrap();
+        assert!((ap - 5.0 / 9.0).abs() < 1e-12, "{ap}");
+        assert_eq!(
+            average_precision(&images, 1, 0.5, Interpolation::AllPoint),
+            None
+        );
+        let s = evaluate(&images, 2, 0.5, 0.65, Interpolation::AllPoint);
+        assert_eq!(
+            (s.true_positives, s.false_positives, s.false_negatives),
+            (2, 1, 1)
+        );
+        assert!((s.precision - 2.0 / 3.0).abs() < 1e-12 && (s.recall - 2.0 / 3.0).abs() < 1e-12);
+        assert!((s.map - 5.0 / 9.0).abs() < 1e-12);
+        let iou1 = BBox::from_xywh(1.0, 0.0, 10.0, 10.0).iou(&BBox::from_xywh(0.0, 0.0, 10.0, 10.0))
+            as f64;
+        assert!((s.mean_iou - (1.0 + iou1) / 2.0).abs() < 1e-6);
+        // confusion: two class-0 hits, one missed (col K), one spurious (row K)
+        assert_eq!(s.confusion[0][0], 2);
+        assert_eq!(s.confusion[0][2], 1);
+        assert_eq!(s.confusion[2][0], 1);
+    }
+
+    #[test]
+    fn wrong_class_is_confused_not_matched() {
+        let images = vec![ImageResult {
+            detections: vec![det(0.0, 0.9, 1)],
+            truth: vec![truth(0.0, 0)],
+        }];
+        let s = evaluate(&images, 2, 0.5, 0.5, Interpolation::AllPoint);
+        assert_eq!(s.map, 0.0);
+        assert_eq!(s.confusion[0][1], 1);
+        assert_eq!(
+            (s.true_positives, s.false_positives, s.false_negatives),
+            (0, 1, 1)
+        );
+    }
+
+    #[test]
+    fn perfect_detections_give_one_in_both_modes() {
+        let images = vec![ImageResult {
+            detections: vec![det(0.0, 0.9, 0), det(40.0, 0.8, 1)],
+            truth: vec![truth(0.0, 0), truth(40.0, 1)],
+        }];
+        for i in [Interpolation::AllPoint, Interpolation::Coco101] {
+            assert!((evaluate(&images, 2, 0.5, 0.5, i).map - 1.0).abs() < 1e-12);
+        }
+    }
+}

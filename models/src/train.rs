@@ -1,0 +1,445 @@
+//! The training loop behind `frugal train`: data order, augmentation, optimizer steps,
+//! per-epoch validation mAP, checkpoints that `--resume` continues from, the best model
+//! and the training curves.
+//!
+//! Output folder:
+//!
+//! ```text
+//! config.json              the full config (model + train)
+//! checkpoint/              model.safetensors, optimizer.safetensors, state.json
+//! best.safetensors         weights of the epoch with the best validation mAP
+//! curves.csv, curves.png, curves.svg
+//! ```
+//!
+//! Everything random is derived from `train.seed`: weight init (`tch::manual_seed`),
+//! the data order of epoch `e` (ChaCha8 stream `e`) and each step's sampling and
+//! augmentation (ChaCha8 and `tch::manual_seed` seeded from `(seed, step)`), so a
+//! resumed run takes the same steps as an uninterrupted one.
+use crate::config::{Config, TrainConfig};
+use crate::loss::image_losses;
+use crate::metrics::{ImageResult, Interpolation, Truth, evaluate};
+use crate::optim::{Optimizer, learning_rate};
+use crate::{FasterRcnn, ModelError, curves};
+use frugal_data::{Dataset, FrameRecord, Split};
+use frugal_runtime::FrameRef;
+use indicatif::{ProgressBar, ProgressStyle};
+use rand::seq::SliceRandom;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use tch::{Device, Kind, Tensor};
+
+/// What one `frugal train` invocation is asked to do.
+#[derive(Clone, Debug)]
+pub struct TrainOptions {
+    /// Dataset folder (`frugal_data::Dataset::load`).
+    pub data: PathBuf,
+    /// Output folder.
+    pub out: PathBuf,
+    /// The configuration (ignored in favour of the saved one when resuming, but it
+    /// must then equal it).
+    pub config: Config,
+    /// Continue from `out/checkpoint`.
+    pub resume: bool,
+    /// Stop once this many epochs are complete (a deliberate interruption; the run
+    /// can be resumed).
+    pub stop_after: Option<usize>,
+    /// Show a progress bar.
+    pub progress: bool,
+}
+
+/// One line of the training curves.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EpochRecord {
+    /// Epoch number, from 1.
+    pub epoch: usize,
+    /// Optimizer steps done at its end.
+    pub step: u64,
+    /// Mean total loss over the epoch.
+    pub loss: f64,
+    /// Mean RPN objectness loss.
+    pub rpn_objectness: f64,
+    /// Mean RPN box loss.
+    pub rpn_box: f64,
+    /// Mean RoI classification loss.
+    pub roi_class: f64,
+    /// Mean RoI box loss.
+    pub roi_box: f64,
+    /// Validation mAP@0.5 (all-point) at its end.
+    pub val_map: f64,
+    /// Learning rate at its last step.
+    pub lr: f64,
+    /// Wall-clock seconds it took (training + validation).
+    pub seconds: f64,
+}
+
+/// The training state saved with every checkpoint.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrainState {
+    /// Completed epochs.
+    pub epochs_done: usize,
+    /// Optimizer steps taken.
+    pub step: u64,
+    /// The data-order RNG: ChaCha8 seeded with `seed`, stream = epoch index.
+    pub rng_seed: u64,
+    /// Best validation mAP so far.
+    pub best_map: f64,
+    /// Epoch that reached it.
+    pub best_epoch: usize,
+    /// Every completed epoch.
+    pub history: Vec<EpochRecord>,
+}
+
+/// What a finished training run reports.
+#[derive(Clone, Debug, Serialize)]
+pub struct TrainReport {
+    /// The final state.
+    pub state: TrainState,
+    /// Seconds spent in this invocation.
+    pub seconds: f64,
+}
+
+fn mix(seed: u64, step: u64) -> u64 {
+    let mut z = seed ^ step.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ModelError> {
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, bytes).map_err(|e| ModelError::io(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| ModelError::io(path, e))
+}
+
+/// Ground truth of a frame.
+pub fn frame_truth(f: &FrameRecord) -> Vec<Truth> {
+    f.objects
+        .iter()
+        .map(|o| Truth {
+            class: o.class,
+            bbox: o.bbox,
+        })
+        .collect()
+}
+
+/// An image as a `[1, 3, H, W]` float tensor in `[0, 1]`.
+fn image_tensor(rgb: &image::RgbImage) -> Tensor {
+    let (w, h) = (rgb.width() as i64, rgb.height() as i64);
+    Tensor::from_slice(rgb.as_raw())
+        .reshape([h, w, 3])
+        .permute([2, 0, 1])
+        .unsqueeze(0)
+        .to_kind(Kind::Float)
+        / 255.0
+}
+
+/// Photometric augmentation of a `[1, 3, H, W]` image in `[0, 1]`: brightness, an
+/// optional 3×3 Gaussian blur, Gaussian noise. No flips (left/right arrows).
+pub fn augment(img: &Tensor, tc: &TrainConfig, rng: &mut ChaCha8Rng) -> Tensor {
+    let b = tc.brightness.clamp(0.0, 0.95);
+    let factor = if b > 0.0 {
+        rng.random_range(1.0 - b..=1.0 + b)
+    } else {
+        1.0
+    };
+    let mut x = img * f64::from(factor);
+    if tc.blur_prob > 0.0 && rng.random_bool(tc.blur_prob.clamp(0.0, 1.0)) {
+        let k = Tensor::from_slice(&[1.0f32, 2.0, 1.0, 2.0, 4.0, 2.0, 1.0, 2.0, 1.0]) / 16.0;
+        let k = k
+            .reshape([1, 1, 3, 3])
+            .repeat([3, 1, 1, 1])
+            .to_device(img.device());
+        x = x.conv2d::<Tensor>(&k, None, [1, 1], [1, 1], [1, 1], 3);
+    }
+    if tc.noise > 0.0 {
+        let sigma = rng.random_range(0.0..=tc.noise);
+        x = &x + x.randn_like() * f64::from(sigma);
+    }
+    x.clamp(0.0, 1.0)
+}
+
+/// `[1, 3, H, W]` in `[0, 1]` → normalised with the model's mean / std.
+fn normalise(model: &FasterRcnn, x: &Tensor) -> Tensor {
+    let c = model.config();
+    let mean = Tensor::from_slice(&c.pixel_mean)
+        .reshape([1, 3, 1, 1])
+        .to_device(x.device());
+    let std = Tensor::from_slice(&c.pixel_std)
+        .reshape([1, 3, 1, 1])
+        .to_device(x.device());
+    (x - mean) / std
+}
+
+/// Run `model` on frames and pair the detections with the ground truth.
+pub fn detect_frames(
+    model: &FasterRcnn,
+    ds: &Dataset,
+    frames: &[&FrameRecord],
+) -> Result<Vec<ImageResult>, ModelError> {
+    let mut out = Vec::with_capacity(frames.len());
+    for f in frames {
+        let rgb = ds
+            .load_rgb(f)
+            .map_err(|e| ModelError::Data(e.to_string()))?;
+        let frame = FrameRef::new(rgb.width(), rgb.height(), rgb.as_raw()).ok_or_else(|| {
+            ModelError::Data(format!("{}: pixel buffer size mismatch", f.file.display()))
+        })?;
+        out.push(ImageResult {
+            detections: model.detect(frame),
+            truth: frame_truth(f),
+        });
+    }
+    Ok(out)
+}
+
+/// Up to `n` frames spread evenly over `frames` (all when `n == 0`).
+pub fn spread<'a>(frames: Vec<&'a FrameRecord>, n: usize) -> Vec<&'a FrameRecord> {
+    if n == 0 || frames.len() <= n {
+        return frames;
+    }
+    (0..n).map(|i| frames[i * frames.len() / n]).collect()
+}
+
+struct Paths {
+    config: PathBuf,
+    ckpt: PathBuf,
+    best: PathBuf,
+}
+
+impl Paths {
+    fn new(out: &Path) -> Self {
+        Self {
+            config: out.join("config.json"),
+            ckpt: out.join("checkpoint"),
+            best: out.join("best.safetensors"),
+        }
+    }
+}
+
+fn save_checkpoint(
+    dir: &Path,
+    model: &FasterRcnn,
+    opt: &Optimizer,
+    state: &TrainState,
+) -> Result<(), ModelError> {
+    let tmp = dir.with_file_name("checkpoint.tmp");
+    let old = dir.with_file_name("checkpoint.old");
+    if tmp.exists() {
+        std::fs::remove_dir_all(&tmp).map_err(|e| ModelError::io(&tmp, e))?;
+    }
+    std::fs::create_dir_all(&tmp).map_err(|e| ModelError::io(&tmp, e))?;
+    model.save(&tmp.join("model.safetensors"))?;
+    opt.save(&tmp.join("optimizer.safetensors"))?;
+    let json = serde_json::to_vec_pretty(state).map_err(|e| ModelError::Data(e.to_string()))?;
+    write_atomic(&tmp.join("state.json"), &json)?;
+    if dir.exists() {
+        if old.exists() {
+            std::fs::remove_dir_all(&old).map_err(|e| ModelError::io(&old, e))?;
+        }
+        std::fs::rename(dir, &old).map_err(|e| ModelError::io(dir, e))?;
+    }
+    std::fs::rename(&tmp, dir).map_err(|e| ModelError::io(dir, e))?;
+    if old.exists() {
+        std::fs::remove_dir_all(&old).map_err(|e| ModelError::io(&old, e))?;
+    }
+    Ok(())
+}
+
+fn load_checkpoint(
+    dir: &Path,
+    model: &mut FasterRcnn,
+    opt: &mut Optimizer,
+) -> Result<TrainState, ModelError> {
+    // a crash between the two renames leaves only checkpoint.old
+    let old = dir.with_file_name("checkpoint.old");
+    let dir = if dir.exists() { dir.to_path_buf() } else { old };
+    let state_path = dir.join("state.json");
+    let text = std::fs::read_to_string(&state_path).map_err(|e| ModelError::io(&state_path, e))?;
+    let state: TrainState = serde_json::from_str(&text).map_err(|e| ModelError::Checkpoint {
+        file: state_path.display().to_string(),
+        msg: e.to_string(),
+    })?;
+    model.load_weights(&dir.join("model.safetensors"))?;
+    opt.load(&dir.join("optimizer.safetensors"))?;
+    Ok(state)
+}
+
+/// Train (or resume training) a detector; see the module docs for the outputs.
+pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
+    let t0 = std::time::Instant::now();
+    let paths = Paths::new(&opts.out);
+    let config = if opts.resume {
+        let saved = Config::load(&paths.config)?;
+        if saved != opts.config {
+            return Err(ModelError::Config {
+                file: paths.config.display().to_string(),
+                msg: "the given config differs from the one this run was started with (omit --config to resume)".into(),
+            });
+        }
+        saved
+    } else {
+        opts.config.clone()
+    };
+    config.validate("config")?;
+    let tc = config.train.clone();
+    if tc.threads > 0 {
+        tch::set_num_threads(tc.threads as i32);
+    }
+    let ds = Dataset::load(&opts.data).map_err(|e| ModelError::Data(e.to_string()))?;
+    let train_frames: Vec<&FrameRecord> = spread(ds.split(Split::Train).collect(), tc.train_frames);
+    if train_frames.is_empty() {
+        return Err(ModelError::Data(format!(
+            "{}: the train split is empty",
+            opts.data.display()
+        )));
+    }
+    let val_frames = spread(ds.split(Split::Val).collect(), tc.val_frames);
+    if let Some(f) = train_frames
+        .iter()
+        .flat_map(|f| &f.objects)
+        .find(|o| usize::from(o.class) >= config.model.num_classes)
+    {
+        return Err(ModelError::Data(format!(
+            "{}: class {} is outside the model's {} classes",
+            opts.data.display(),
+            f.class,
+            config.model.num_classes
+        )));
+    }
+
+    tch::manual_seed(tc.seed as i64);
+    let mut model = FasterRcnn::new(config.model.clone(), Device::Cpu)?;
+    let mut opt = Optimizer::new(model.var_store(), &tc);
+    std::fs::create_dir_all(&opts.out).map_err(|e| ModelError::io(&opts.out, e))?;
+    let mut state = if opts.resume {
+        load_checkpoint(&paths.ckpt, &mut model, &mut opt)?
+    } else {
+        let json =
+            serde_json::to_vec_pretty(&config).map_err(|e| ModelError::Data(e.to_string()))?;
+        write_atomic(&paths.config, &json)?;
+        TrainState {
+            epochs_done: 0,
+            step: 0,
+            rng_seed: tc.seed,
+            best_map: -1.0,
+            best_epoch: 0,
+            history: Vec::new(),
+        }
+    };
+
+    let steps_per_epoch = train_frames.len().div_ceil(tc.batch_size);
+    let total_steps = steps_per_epoch * tc.epochs;
+    let last_epoch = opts.stop_after.unwrap_or(tc.epochs).min(tc.epochs);
+    let bar = if opts.progress {
+        ProgressBar::new(total_steps as u64)
+    } else {
+        ProgressBar::hidden()
+    };
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] {pos}/{len} steps (eta {eta}) {msg}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar.set_position(state.step);
+
+    for epoch in state.epochs_done..last_epoch {
+        let te = std::time::Instant::now();
+        let mut order: Vec<usize> = (0..train_frames.len()).collect();
+        let mut order_rng = ChaCha8Rng::seed_from_u64(state.rng_seed);
+        order_rng.set_stream(epoch as u64);
+        order.shuffle(&mut order_rng);
+        let mut sums = [0.0f64; 5];
+        let mut n_steps = 0usize;
+        let mut lr = tc.lr;
+        for batch in order.chunks(tc.batch_size) {
+            let s = mix(tc.seed, state.step);
+            let mut rng = ChaCha8Rng::seed_from_u64(s);
+            tch::manual_seed(s as i64);
+            opt.zero_grad();
+            let mut parts = [0.0f64; 5];
+            let mut total = Tensor::zeros([], (Kind::Float, Device::Cpu));
+            for &i in batch {
+                let f = train_frames[i];
+                let rgb = ds
+                    .load_rgb(f)
+                    .map_err(|e| ModelError::Data(e.to_string()))?;
+                let x = normalise(&model, &augment(&image_tensor(&rgb), &tc, &mut rng));
+                let l = image_losses(&model, &x, &frame_truth(f), &tc, &mut rng);
+                for (p, t) in
+                    parts
+                        .iter_mut()
+                        .zip([&l.rpn_objectness, &l.rpn_box, &l.roi_class, &l.roi_box])
+                {
+                    *p += t.double_value(&[]) / batch.len() as f64;
+                }
+                total = total + l.total() / batch.len() as f64;
+            }
+            parts[4] = parts[..4].iter().sum();
+            total.backward();
+            lr = learning_rate(&tc, state.step as usize, total_steps);
+            opt.step(lr);
+            state.step += 1;
+            n_steps += 1;
+            for (s, p) in sums.iter_mut().zip(parts) {
+                *s += p;
+            }
+            let m = |k: usize| sums[k] / n_steps as f64;
+            bar.set_message(format!(
+                "epoch {}/{} loss {:.3} (obj {:.3} rpn {:.3} cls {:.3} box {:.3})",
+                epoch + 1,
+                tc.epochs,
+                m(4),
+                m(0),
+                m(1),
+                m(2),
+                m(3)
+            ));
+            bar.inc(1);
+        }
+        let results = detect_frames(&model, &ds, &val_frames)?;
+        let val_map = evaluate(
+            &results,
+            config.model.num_classes,
+            0.5,
+            0.5,
+            Interpolation::AllPoint,
+        )
+        .map;
+        let n = n_steps.max(1) as f64;
+        state.history.push(EpochRecord {
+            epoch: epoch + 1,
+            step: state.step,
+            loss: sums[4] / n,
+            rpn_objectness: sums[0] / n,
+            rpn_box: sums[1] / n,
+            roi_class: sums[2] / n,
+            roi_box: sums[3] / n,
+            val_map,
+            lr,
+            seconds: te.elapsed().as_secs_f64(),
+        });
+        state.epochs_done = epoch + 1;
+        if val_map > state.best_map {
+            state.best_map = val_map;
+            state.best_epoch = epoch + 1;
+            model.save(&paths.best)?;
+        }
+        save_checkpoint(&paths.ckpt, &model, &opt, &state)?;
+        curves::write(&opts.out, &state.history)?;
+        bar.println(format!(
+            "epoch {} done: loss {:.4}, val mAP@0.5 {:.4}",
+            epoch + 1,
+            sums[4] / n,
+            val_map
+        ));
+    }
+    bar.finish_and_clear();
+    Ok(TrainReport {
+        state,
+        seconds: t0.elapsed().as_secs_f64(),
+    })
+}
