@@ -1,2 +1,10 @@
 //! Accuracy (mAP@0.5, F1, IoU) and latency of detector variants, and their Pareto front.
 #![deny(missing_docs)]
+
+pub mod front;
+pub mod plot;
+pub mod stats;
+
+pub use front::{Point, dominators, front};
+pub use plot::{FrontPlot, PlotError, plot_front};
+pub use stats::Latency;
