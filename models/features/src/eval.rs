@@ -1,0 +1,232 @@
+//! Accuracy and speed of a variant on labelled frames, and proposal recall.
+
+use crate::edgeboxes::{EdgeBoxesConfig, proposals, recall_at};
+use crate::error::Result;
+use crate::model::FeatureModel;
+use crate::params::HogParams;
+use crate::train::LabeledFrame;
+use frugal_runtime::{BBox, ClassId, Detection};
+use std::time::Instant;
+
+/// Counts of one class.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct ClassCounts {
+    /// Detections matching a sign of this class.
+    pub tp: usize,
+    /// Detections of this class matching nothing.
+    pub fp: usize,
+    /// Signs of this class no detection matched.
+    pub missed: usize,
+}
+
+impl ClassCounts {
+    /// `tp / (tp + fp)`, or `None` without detections.
+    pub fn precision(&self) -> Option<f64> {
+        let n = self.tp + self.fp;
+        (n > 0).then(|| self.tp as f64 / n as f64)
+    }
+
+    /// `tp / (tp + missed)`, or `None` without signs.
+    pub fn recall(&self) -> Option<f64> {
+        let n = self.tp + self.missed;
+        (n > 0).then(|| self.tp as f64 / n as f64)
+    }
+}
+
+/// Accuracy and time of one variant.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct EvalReport {
+    /// The variant.
+    pub params: String,
+    /// Detections at or above this score count.
+    pub score_threshold: f32,
+    /// IoU a detection needs with a sign of its class.
+    pub iou: f32,
+    /// Frames evaluated.
+    pub frames: usize,
+    /// Counts per class, indexed by class id.
+    pub per_class: Vec<ClassCounts>,
+    /// Mean wall time of one frame's detection, milliseconds.
+    pub mean_ms: f64,
+}
+
+impl EvalReport {
+    /// Counts summed over classes.
+    pub fn total(&self) -> ClassCounts {
+        self.per_class
+            .iter()
+            .fold(ClassCounts::default(), |a, c| ClassCounts {
+                tp: a.tp + c.tp,
+                fp: a.fp + c.fp,
+                missed: a.missed + c.missed,
+            })
+    }
+}
+
+/// Match one frame's detections (best first) to its signs, greedily by score: a
+/// detection at or above `threshold` is a true positive when it overlaps an unmatched
+/// sign of its class at IoU ≥ `iou`, a false positive otherwise.
+pub fn match_frame(
+    dets: &[Detection],
+    truth: &[(ClassId, BBox)],
+    threshold: f32,
+    iou: f32,
+    counts: &mut [ClassCounts],
+) {
+    let mut used = vec![false; truth.len()];
+    for d in dets.iter().filter(|d| d.score >= threshold) {
+        let hit = truth
+            .iter()
+            .enumerate()
+            .filter(|(i, (c, b))| !used[*i] && *c == d.class && b.iou(&d.bbox) >= iou)
+            .max_by(|a, b| a.1.1.iou(&d.bbox).total_cmp(&b.1.1.iou(&d.bbox)));
+        let Some(slot) = counts.get_mut(d.class as usize) else {
+            continue;
+        };
+        match hit {
+            Some((i, _)) => {
+                used[i] = true;
+                slot.tp += 1;
+            }
+            None => slot.fp += 1,
+        }
+    }
+    for (i, (c, _)) in truth.iter().enumerate() {
+        if !used[i]
+            && let Some(slot) = counts.get_mut(*c as usize)
+        {
+            slot.missed += 1;
+        }
+    }
+}
+
+/// Run one variant over `frames`, timing each frame's detection (proposals included).
+pub fn evaluate(
+    model: &FeatureModel,
+    params: HogParams,
+    frames: &[LabeledFrame],
+    threshold: f32,
+    iou: f32,
+) -> Result<EvalReport> {
+    let det = model.detector(params)?;
+    let mut per_class = vec![ClassCounts::default(); model.classes.len()];
+    let mut secs = 0.0;
+    for f in frames {
+        let img = f.view()?;
+        let t = Instant::now();
+        let dets = det.detect_all(&img)?;
+        secs += t.elapsed().as_secs_f64();
+        match_frame(&dets, &f.objects, threshold, iou, &mut per_class);
+    }
+    Ok(EvalReport {
+        params: params.to_string(),
+        score_threshold: threshold,
+        iou,
+        frames: frames.len(),
+        per_class,
+        mean_ms: if frames.is_empty() {
+            0.0
+        } else {
+            1e3 * secs / frames.len() as f64
+        },
+    })
+}
+
+/// Proposal recall at IoU `iou` for each proposal count: `(count, recall)`, plus the
+/// mean time to compute a frame's proposals (ms).
+pub fn proposal_recall(
+    cfg: &EdgeBoxesConfig,
+    frames: &[LabeledFrame],
+    counts: &[usize],
+    iou: f32,
+) -> Result<(Vec<(usize, f64)>, f64)> {
+    let max = counts.iter().copied().max().unwrap_or(0);
+    let mut hits = vec![(0usize, 0usize); counts.len()];
+    let mut secs = 0.0;
+    for f in frames {
+        let img = f.view()?;
+        let t = Instant::now();
+        let props = proposals(&img, cfg, max)?;
+        secs += t.elapsed().as_secs_f64();
+        let boxes: Vec<BBox> = props.iter().map(|p| p.bbox).collect();
+        let truth: Vec<BBox> = f.objects.iter().map(|o| o.1).collect();
+        for (h, r) in hits.iter_mut().zip(recall_at(&boxes, &truth, counts, iou)) {
+            h.0 += r.0;
+            h.1 += r.1;
+        }
+    }
+    let recall = counts
+        .iter()
+        .zip(hits)
+        .map(|(&n, (hit, total))| {
+            (
+                n,
+                if total == 0 {
+                    0.0
+                } else {
+                    hit as f64 / total as f64
+                },
+            )
+        })
+        .collect();
+    let ms = if frames.is_empty() {
+        0.0
+    } else {
+        1e3 * secs / frames.len() as f64
+    };
+    Ok((recall, ms))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn matching_counts_hits_false_alarms_and_misses() {
+        let truth = [
+            (1, BBox::new(0.0, 0.0, 10.0, 10.0)),
+            (2, BBox::new(50.0, 50.0, 60.0, 60.0)),
+        ];
+        let d = |x: f32, class, score| Detection {
+            bbox: BBox::new(x, 0.0, x + 10.0, 10.0),
+            score,
+            class,
+        };
+        let dets = [
+            d(0.0, 1, 2.0),
+            d(1.0, 1, 1.0),
+            d(100.0, 0, 0.5),
+            d(0.0, 2, -0.2),
+        ];
+        let mut counts = vec![ClassCounts::default(); 3];
+        match_frame(&dets, &truth, 0.0, 0.5, &mut counts);
+        assert_eq!(
+            counts[1],
+            ClassCounts {
+                tp: 1,
+                fp: 1,
+                missed: 0
+            }
+        );
+        assert_eq!(
+            counts[0],
+            ClassCounts {
+                tp: 0,
+                fp: 1,
+                missed: 0
+            }
+        );
+        // The class-2 detection is below the threshold and wrongly placed: a miss.
+        assert_eq!(
+            counts[2],
+            ClassCounts {
+                tp: 0,
+                fp: 0,
+                missed: 1
+            }
+        );
+        assert_eq!(counts[1].precision(), Some(0.5));
+        assert_eq!(counts[2].recall(), Some(0.0));
+        assert_eq!(ClassCounts::default().precision(), None);
+    }
+}

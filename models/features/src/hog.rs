@@ -1,0 +1,365 @@
+//! Histograms of oriented gradients (Dalal & Triggs 2005).
+//!
+//! The computation is scikit-image's `skimage.feature.hog` (so that the two can be
+//! compared value for value):
+//!
+//! * gradients are unnormalised central differences (`I[y+1] − I[y−1]`), zero on the
+//!   image border; on colour images each pixel takes the channel with the largest
+//!   gradient magnitude (the first one on ties);
+//! * orientations are unsigned, in `[0°, 180°)`, split into `bins` equal bins;
+//! * a cell's histogram is the mean gradient magnitude per bin over its `cell × cell`
+//!   pixels; pixels beyond the last whole cell are ignored;
+//! * blocks of `block × block` cells, stride one cell, are L2-Hys normalised
+//!   (L2 with ε = 1e-5, clip at 0.2, L2 again); the feature vector is the blocks in
+//!   row-major order, each as (cell row, cell column, bin).
+//!
+//! By default a pixel votes for one orientation bin, as scikit-image does. With
+//! [`HogConfig::orientation_interpolation`] its vote is split linearly between the
+//! two nearest bin centres (Dalal & Triggs); spatial (trilinear) interpolation
+//! between cells is not done.
+
+use crate::error::{Error, Result};
+
+/// HoG settings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+pub struct HogConfig {
+    /// Cell side in pixels.
+    pub cell: usize,
+    /// Block side in cells.
+    pub block: usize,
+    /// Orientation bins over 0-180°.
+    pub bins: usize,
+    /// Split each vote between the two nearest orientation bins.
+    pub orientation_interpolation: bool,
+}
+
+impl Default for HogConfig {
+    fn default() -> Self {
+        Self {
+            cell: 8,
+            block: 2,
+            bins: 9,
+            orientation_interpolation: false,
+        }
+    }
+}
+
+impl HogConfig {
+    /// Cells along a side of `len` pixels.
+    pub fn cells(&self, len: usize) -> usize {
+        len.checked_div(self.cell).unwrap_or(0)
+    }
+
+    /// Length of the feature vector of a `width × height` image (0 when the image
+    /// holds less than one block).
+    pub fn len(&self, width: usize, height: usize) -> usize {
+        let (cx, cy) = (self.cells(width), self.cells(height));
+        if self.block == 0 || cx < self.block || cy < self.block {
+            return 0;
+        }
+        (cx - self.block + 1) * (cy - self.block + 1) * self.block * self.block * self.bins
+    }
+
+    /// Check the settings for a `size × size` window.
+    pub fn validate(&self, size: usize) -> Result<()> {
+        let bad = |name: &'static str, reason: String| Err(Error::Param { name, reason });
+        if self.cell == 0 {
+            return bad("cell", "must be at least 1 pixel".into());
+        }
+        if self.block == 0 {
+            return bad("block", "must be at least 1 cell".into());
+        }
+        if !(2..=64).contains(&self.bins) {
+            return bad("bins", format!("{} is not in 2..=64", self.bins));
+        }
+        if self.len(size, size) == 0 {
+            return bad(
+                "block",
+                format!(
+                    "a {size}×{size} window holds no {0}×{0}-cell block of {1}-pixel cells",
+                    self.block, self.cell
+                ),
+            );
+        }
+        Ok(())
+    }
+}
+
+/// Reusable buffers for [`hog_into`].
+#[derive(Clone, Debug, Default)]
+pub struct HogScratch {
+    hist: Vec<f32>,
+}
+
+/// HoG features of an interleaved image with `channels` channels (1 or 3; values on
+/// any scale, e.g. `0..=255`), written to `out` (cleared first).
+pub fn hog(img: &[f32], width: usize, height: usize, channels: usize, cfg: &HogConfig) -> Vec<f32> {
+    let mut out = Vec::new();
+    hog_into(
+        img,
+        width,
+        height,
+        channels,
+        cfg,
+        &mut HogScratch::default(),
+        &mut out,
+    );
+    out
+}
+
+/// [`hog`] with caller-provided buffers. An image too small for one block, or whose
+/// slice is shorter than `width * height * channels`, gives an empty vector.
+pub fn hog_into(
+    img: &[f32],
+    width: usize,
+    height: usize,
+    channels: usize,
+    cfg: &HogConfig,
+    scratch: &mut HogScratch,
+    out: &mut Vec<f32>,
+) {
+    out.clear();
+    let len = cfg.len(width, height);
+    let need = width
+        .checked_mul(height)
+        .and_then(|n| n.checked_mul(channels));
+    if len == 0
+        || channels == 0
+        || need.is_none_or(|n| img.len() < n)
+        || !(2..=64).contains(&cfg.bins)
+    {
+        return;
+    }
+    let (ncx, ncy) = (cfg.cells(width), cfg.cells(height));
+    let bins = cfg.bins;
+    let hist = &mut scratch.hist;
+    hist.clear();
+    hist.resize(ncx * ncy * bins, 0.0);
+    let step = 180.0 / bins as f64;
+    // Unit vectors of the inner bin boundaries, for binning without atan2.
+    let bounds: Vec<(f64, f64)> = (1..bins)
+        .map(|k| {
+            let t = (k as f64 * step).to_radians();
+            (t.cos(), t.sin())
+        })
+        .collect();
+    let (wmax, hmax) = (ncx * cfg.cell, ncy * cfg.cell);
+    for y in 0..hmax {
+        let cy = y / cfg.cell;
+        for x in 0..wmax {
+            if y == 0 || x == 0 || y + 1 >= height || x + 1 >= width {
+                continue; // zero gradient on the border
+            }
+            // Strongest channel.
+            let (mut gr, mut gc, mut m2) = (0.0f32, 0.0f32, -1.0f32);
+            for ch in 0..channels {
+                let r = img[((y + 1) * width + x) * channels + ch]
+                    - img[((y - 1) * width + x) * channels + ch];
+                let c = img[(y * width + x + 1) * channels + ch]
+                    - img[(y * width + x - 1) * channels + ch];
+                let m = r * r + c * c;
+                if m > m2 {
+                    (gr, gc, m2) = (r, c, m);
+                }
+            }
+            if m2 <= 0.0 {
+                continue;
+            }
+            let mag = m2.sqrt();
+            let cell = &mut hist[(cy * ncx + x / cfg.cell) * bins..][..bins];
+            if cfg.orientation_interpolation {
+                let deg = (gr as f64).atan2(gc as f64).to_degrees().rem_euclid(180.0);
+                let p = deg / step - 0.5;
+                let k0 = p.floor();
+                let f = (p - k0) as f32;
+                let k0 = (k0 as isize).rem_euclid(bins as isize) as usize;
+                cell[k0] += mag * (1.0 - f);
+                cell[(k0 + 1) % bins] += mag * f;
+            } else {
+                cell[hard_bin(gr as f64, gc as f64, step, &bounds)] += mag;
+            }
+        }
+    }
+    let area = (cfg.cell * cfg.cell) as f32;
+    hist.iter_mut().for_each(|v| *v /= area);
+    // Blocks.
+    let b = cfg.block;
+    let (nbx, nby) = (ncx - b + 1, ncy - b + 1);
+    let blen = b * b * bins;
+    out.reserve(len);
+    const EPS2: f32 = 1e-10;
+    for by in 0..nby {
+        for bx in 0..nbx {
+            let start = out.len();
+            for cy in by..by + b {
+                out.extend_from_slice(&hist[(cy * ncx + bx) * bins..(cy * ncx + bx + b) * bins]);
+            }
+            let blk = &mut out[start..start + blen];
+            let n = (blk.iter().map(|v| v * v).sum::<f32>() + EPS2).sqrt();
+            blk.iter_mut().for_each(|v| *v = (*v / n).min(0.2));
+            let n = (blk.iter().map(|v| v * v).sum::<f32>() + EPS2).sqrt();
+            blk.iter_mut().for_each(|v| *v /= n);
+        }
+    }
+}
+
+/// The orientation bin of gradient `(row, col)`, exactly as scikit-image assigns it
+/// (`floor(deg(atan2(row, col)) mod 180 / step)`), using cross products with the bin
+/// boundaries and falling back to `atan2` only next to a boundary.
+fn hard_bin(gr: f64, gc: f64, step: f64, bounds: &[(f64, f64)]) -> usize {
+    // Fold into the upper half plane: angle in [0°, 180°).
+    let (y, x) = if gr < 0.0 || (gr == 0.0 && gc < 0.0) {
+        (-gr, -gc)
+    } else {
+        (gr, gc)
+    };
+    let scale = (x.abs() + y.abs()) * 1e-9;
+    let mut bin = 0;
+    for &(c, s) in bounds {
+        let cross = y * c - x * s; // >= 0 when the angle >= the boundary
+        if cross.abs() <= scale {
+            return exact_bin(gr, gc, step, bounds.len() + 1);
+        }
+        if cross > 0.0 {
+            bin += 1;
+        } else {
+            break;
+        }
+    }
+    bin
+}
+
+/// scikit-image's bin test, via the same `atan2` and degree conversion.
+fn exact_bin(gr: f64, gc: f64, step: f64, bins: usize) -> usize {
+    let deg = gr.atan2(gc).to_degrees().rem_euclid(180.0);
+    let mut k = ((deg / step) as usize).min(bins - 1);
+    while k + 1 < bins && deg >= step * (k + 1) as f64 {
+        k += 1;
+    }
+    while k > 0 && deg < step * k as f64 {
+        k -= 1;
+    }
+    k
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hand_computed_single_cell() {
+        // 4×4 grey image, one 4-pixel cell, one block, 4 bins of 45°.
+        // Columns 0,1 = 0; columns 2,3 = 10: the gradient is horizontal (col
+        // difference 10) at interior pixels (1,1), (1,2), (2,1), (2,2).
+        #[rustfmt::skip]
+        let img = [
+            0.0, 0.0, 10.0, 10.0,
+            0.0, 0.0, 10.0, 10.0,
+            0.0, 0.0, 10.0, 10.0,
+            0.0, 0.0, 10.0, 10.0f32,
+        ];
+        let cfg = HogConfig {
+            cell: 4,
+            block: 1,
+            bins: 4,
+            orientation_interpolation: false,
+        };
+        let f = hog(&img, 4, 4, 1, &cfg);
+        // Histogram: bin 0 gets 4 × 10 / 16 = 2.5; L2 → [1, 0, 0, 0]; clip 0.2 → [0.2,
+        // 0, 0, 0]; L2 again → [1, 0, 0, 0] (up to ε).
+        assert_eq!(f.len(), 4);
+        assert!(
+            (f[0] - 1.0).abs() < 1e-6 && f[1..].iter().all(|&v| v == 0.0),
+            "{f:?}"
+        );
+
+        // A diagonal ramp I = x + y: gradient (row 2, col 2) → 45°, bin 1 with
+        // 45° bins; with 9 bins, bin 2 (40-60°). Two cells of 2 px: 2×2 cells, one
+        // 2×2 block.
+        let img: Vec<f32> = (0..16).map(|i| ((i % 4) + (i / 4)) as f32).collect();
+        let f = hog(&img, 4, 4, 1, &cfg);
+        assert!((f[1] - 1.0).abs() < 1e-6, "{f:?}");
+        let cfg = HogConfig {
+            cell: 2,
+            block: 2,
+            bins: 9,
+            orientation_interpolation: false,
+        };
+        let f = hog(&img, 4, 4, 1, &cfg);
+        assert_eq!(f.len(), 36);
+        // Each cell has exactly one interior pixel, magnitude √8, mean √8/4 in bin 2;
+        // the block is 4 equal values: L2 → 0.5 each, clip 0.2, renormalise → 0.5.
+        for (i, v) in f.iter().enumerate() {
+            let want = if i % 9 == 2 { 0.5 } else { 0.0 };
+            assert!((v - want).abs() < 1e-5, "feature {i} = {v}");
+        }
+    }
+
+    #[test]
+    fn interpolation_splits_votes_between_neighbouring_bins() {
+        // Gradient at 45° with 4 bins of 45° (centres 22.5°, 67.5°): half each.
+        let img: Vec<f32> = (0..16).map(|i| ((i % 4) + (i / 4)) as f32).collect();
+        let cfg = HogConfig {
+            cell: 4,
+            block: 1,
+            bins: 4,
+            orientation_interpolation: true,
+        };
+        let f = hog(&img, 4, 4, 1, &cfg);
+        assert!((f[0] - f[1]).abs() < 1e-5 && f[0] > 0.5, "{f:?}");
+    }
+
+    #[test]
+    fn colour_takes_the_strongest_channel() {
+        // Red varies along columns weakly, blue along rows strongly: blue wins.
+        let mut img = vec![0.0f32; 4 * 4 * 3];
+        for y in 0..4 {
+            for x in 0..4 {
+                img[(y * 4 + x) * 3] = x as f32;
+                img[(y * 4 + x) * 3 + 2] = 10.0 * y as f32;
+            }
+        }
+        let cfg = HogConfig {
+            cell: 4,
+            block: 1,
+            bins: 4,
+            orientation_interpolation: false,
+        };
+        let f = hog(&img, 4, 4, 3, &cfg);
+        assert!((f[2] - 1.0).abs() < 1e-6, "90° is bin 2: {f:?}");
+    }
+
+    #[test]
+    fn hard_bins_agree_with_atan2_bins() {
+        let step = 20.0;
+        let bounds: Vec<(f64, f64)> = (1..9)
+            .map(|k| {
+                (
+                    (k as f64 * step).to_radians().cos(),
+                    (k as f64 * step).to_radians().sin(),
+                )
+            })
+            .collect();
+        for gr in -12..=12 {
+            for gc in -12..=12 {
+                let (gr, gc) = (gr as f64 * 0.7, gc as f64 * 1.3);
+                assert_eq!(
+                    hard_bin(gr, gc, step, &bounds),
+                    exact_bin(gr, gc, step, 9),
+                    "({gr}, {gc})"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn too_small_or_short_inputs_give_empty_features() {
+        let cfg = HogConfig::default();
+        assert!(hog(&[], 0, 0, 3, &cfg).is_empty());
+        assert!(hog(&[1.0; 3], 1, 1, 3, &cfg).is_empty());
+        assert!(hog(&[1.0; 10], 16, 16, 3, &cfg).is_empty());
+        assert_eq!(hog(&vec![0.0; 16 * 16 * 3], 16, 16, 3, &cfg).len(), 36);
+        assert!(cfg.validate(8).is_err());
+        assert!(cfg.validate(48).is_ok());
+    }
+}
