@@ -1,0 +1,274 @@
+//! The bundle writer (feature `std`): a builder taking owned structs, producing the
+//! bytes of format version 1 (see the [module docs](super) for the layout).
+//!
+//! ```
+//! use frugal_runtime::bundle::write::{BundleWriter, FamilySpec, VariantSpec};
+//! use frugal_runtime::bundle::{Bundle, ScoreBuckets, Thresholds, BUCKET_COUNT};
+//!
+//! let bytes = BundleWriter::new(Thresholds::PAPER)
+//!     .family(FamilySpec { name: "hog".into(), buckets: ScoreBuckets::PAPER_SVM })
+//!     .variant(VariantSpec::new("hog-fast", 0, 1.0, 12.0))
+//!     .variant(VariantSpec::new("hog-full", 0, 3.0, 40.0))
+//!     .policy(0, vec![0, 0, 0, 1, 1, 1, 1, 1]) // BUCKET_COUNT rows x 2 variants
+//!     .metadata("trained-on", "seeds 0..100")
+//!     .finish()?;
+//! let bundle = Bundle::parse(&bytes)?;
+//! assert_eq!(bundle.variant_count(), 2);
+//! assert_eq!(bundle.metadata_get("trained-on"), Some("seeds 0..100"));
+//! # assert_eq!(BUCKET_COUNT, 4);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+use super::{
+    BUCKET_COUNT, Bundle, BundleError, FORMAT_VERSION, HEADER_LEN, MAGIC, SECTION_ENTRY_LEN,
+    ScoreBuckets, SectionKind, Thresholds,
+};
+use crate::crc::{Crc32, crc32};
+use crate::geom::VariantId;
+use std::fmt;
+use std::string::String;
+use std::vec::Vec;
+
+/// A detector family with its confidence buckets.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FamilySpec {
+    /// Family name.
+    pub name: String,
+    /// Its buckets and `T_c`, on the family's score scale.
+    pub buckets: ScoreBuckets,
+}
+
+/// A detector variant.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VariantSpec {
+    /// Variant name.
+    pub name: String,
+    /// Index of its family (order of [`BundleWriter::family`] calls).
+    pub family: u16,
+    /// Cost relative to the cheapest variant, `> 0`.
+    pub relative_cost: f32,
+    /// Measured latency in milliseconds, `>= 0`.
+    pub latency_ms: f32,
+    /// ONNX file name relative to the bundle; empty when there is none.
+    pub onnx_file: String,
+    /// SHA-256 of the ONNX file (zeros when there is none).
+    pub sha256: [u8; 32],
+}
+
+impl VariantSpec {
+    /// A variant without an ONNX file.
+    pub fn new(name: &str, family: u16, relative_cost: f32, latency_ms: f32) -> Self {
+        Self {
+            name: name.into(),
+            family,
+            relative_cost,
+            latency_ms,
+            onnx_file: String::new(),
+            sha256: [0; 32],
+        }
+    }
+}
+
+/// Why a bundle could not be written.
+#[non_exhaustive]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WriteError {
+    /// A string is longer than 65 535 bytes.
+    StringTooLong,
+    /// More variants or families than the format allows, or the file would exceed 4 GiB.
+    TooLarge,
+    /// No policy was given.
+    MissingPolicy,
+    /// The written bytes do not pass the reader (the reason is the reader's).
+    Invalid(BundleError),
+}
+
+impl fmt::Display for WriteError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::StringTooLong => f.write_str("bundle string longer than 65535 bytes"),
+            Self::TooLarge => f.write_str("bundle too large for format version 1"),
+            Self::MissingPolicy => f.write_str("bundle has no policy table"),
+            Self::Invalid(e) => write!(f, "bundle would be invalid: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for WriteError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Self::Invalid(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
+/// Builds a bundle. Every input is validated by parsing the result with [`Bundle::parse`].
+#[derive(Clone, Debug, Default)]
+pub struct BundleWriter {
+    thresholds: Thresholds,
+    families: Vec<FamilySpec>,
+    variants: Vec<VariantSpec>,
+    policy: Option<(VariantId, Vec<VariantId>)>,
+    metadata: Vec<(String, String)>,
+}
+
+/// A section body under construction: records then a string pool.
+struct Body {
+    records: Vec<u8>,
+    pool: Vec<u8>,
+}
+
+impl Body {
+    fn new(count: usize) -> Result<Self, WriteError> {
+        let count = u32::try_from(count).map_err(|_| WriteError::TooLarge)?;
+        Ok(Self {
+            records: count.to_le_bytes().to_vec(),
+            pool: Vec::new(),
+        })
+    }
+
+    fn string(&mut self, s: &str) -> Result<(), WriteError> {
+        let len = u16::try_from(s.len()).map_err(|_| WriteError::StringTooLong)?;
+        let off = u32::try_from(self.pool.len()).map_err(|_| WriteError::TooLarge)?;
+        self.records.extend_from_slice(&off.to_le_bytes());
+        self.pool.extend_from_slice(&len.to_le_bytes());
+        self.pool.extend_from_slice(s.as_bytes());
+        Ok(())
+    }
+
+    fn f32(&mut self, v: f32) {
+        self.records.extend_from_slice(&v.to_le_bytes());
+    }
+
+    fn finish(mut self) -> Vec<u8> {
+        self.records.extend_from_slice(&self.pool);
+        self.records
+    }
+}
+
+impl BundleWriter {
+    /// A writer with these thresholds and nothing else yet.
+    pub fn new(thresholds: Thresholds) -> Self {
+        Self {
+            thresholds,
+            ..Self::default()
+        }
+    }
+
+    /// Appends a family (its index is the number of families added before it).
+    pub fn family(mut self, family: FamilySpec) -> Self {
+        self.families.push(family);
+        self
+    }
+
+    /// Appends a variant (its [`VariantId`] is the number of variants added before it).
+    pub fn variant(mut self, variant: VariantSpec) -> Self {
+        self.variants.push(variant);
+        self
+    }
+
+    /// Sets the policy: the initial variant and the actions, row-major by bucket:
+    /// `actions[bucket * V + current] = next` ([`BUCKET_COUNT`] × `V` entries).
+    pub fn policy(mut self, initial: VariantId, actions: Vec<VariantId>) -> Self {
+        self.policy = Some((initial, actions));
+        self
+    }
+
+    /// Appends a metadata pair.
+    pub fn metadata(mut self, key: impl Into<String>, value: impl Into<String>) -> Self {
+        self.metadata.push((key.into(), value.into()));
+        self
+    }
+
+    fn sections(&self) -> Result<[(SectionKind, Vec<u8>); 5], WriteError> {
+        let t = &self.thresholds;
+        let mut th = Vec::with_capacity(16);
+        th.extend_from_slice(&t.iou_threshold.to_le_bytes());
+        th.extend_from_slice(&t.min_track_quality.to_le_bytes());
+        th.extend_from_slice(&t.mdp_period.to_le_bytes());
+        th.extend_from_slice(&t.reinit_period.to_le_bytes());
+
+        let mut fam = Body::new(self.families.len())?;
+        for f in &self.families {
+            fam.string(&f.name)?;
+            fam.f32(f.buckets.c_opt);
+            fam.f32(f.buckets.c_ge);
+            fam.f32(f.buckets.c_ua);
+            fam.f32(f.buckets.t_c);
+        }
+
+        let mut var = Body::new(self.variants.len())?;
+        for v in &self.variants {
+            var.string(&v.name)?;
+            var.string(&v.onnx_file)?;
+            var.records.extend_from_slice(&v.family.to_le_bytes());
+            var.records.extend_from_slice(&0u16.to_le_bytes());
+            var.f32(v.relative_cost);
+            var.f32(v.latency_ms);
+            var.records.extend_from_slice(&v.sha256);
+        }
+
+        let (initial, actions) = self.policy.as_ref().ok_or(WriteError::MissingPolicy)?;
+        let v = u16::try_from(self.variants.len()).map_err(|_| WriteError::TooLarge)?;
+        let mut pol = Vec::with_capacity(8 + 2 * actions.len());
+        pol.extend_from_slice(&(BUCKET_COUNT as u16).to_le_bytes());
+        pol.extend_from_slice(&v.to_le_bytes());
+        pol.extend_from_slice(&initial.to_le_bytes());
+        pol.extend_from_slice(&0u16.to_le_bytes());
+        for a in actions {
+            pol.extend_from_slice(&a.to_le_bytes());
+        }
+
+        let mut meta = Body::new(self.metadata.len())?;
+        for (k, val) in &self.metadata {
+            meta.string(k)?;
+            meta.string(val)?;
+        }
+
+        Ok([
+            (SectionKind::Thresholds, th),
+            (SectionKind::Families, fam.finish()),
+            (SectionKind::Variants, var.finish()),
+            (SectionKind::Policy, pol),
+            (SectionKind::Metadata, meta.finish()),
+        ])
+    }
+
+    /// The bundle's bytes, checked by parsing them back.
+    pub fn finish(&self) -> Result<Vec<u8>, WriteError> {
+        let sections = self.sections()?;
+        let n = sections.len();
+        let table_end = HEADER_LEN + n * SECTION_ENTRY_LEN;
+        let mut out = std::vec![0u8; table_end];
+        let mut entries = Vec::with_capacity(n * SECTION_ENTRY_LEN);
+        for (kind, body) in &sections {
+            while !out.len().is_multiple_of(4) {
+                out.push(0);
+            }
+            let off = u32::try_from(out.len()).map_err(|_| WriteError::TooLarge)?;
+            let len = u32::try_from(body.len()).map_err(|_| WriteError::TooLarge)?;
+            entries.extend_from_slice(&(*kind as u32).to_le_bytes());
+            entries.extend_from_slice(&off.to_le_bytes());
+            entries.extend_from_slice(&len.to_le_bytes());
+            entries.extend_from_slice(&crc32(body).to_le_bytes());
+            out.extend_from_slice(body);
+        }
+        let total = u32::try_from(out.len()).map_err(|_| WriteError::TooLarge)?;
+        let mut header = Vec::with_capacity(HEADER_LEN);
+        header.extend_from_slice(&MAGIC.to_le_bytes());
+        header.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+        header.extend_from_slice(&(n as u16).to_le_bytes());
+        header.extend_from_slice(&total.to_le_bytes());
+        header.extend_from_slice(&[0; 4]);
+        out.splice(0..table_end, header.into_iter().chain(entries));
+        let mut crc = Crc32::new();
+        crc.update(&out);
+        let crc = crc.finish().to_le_bytes();
+        if let Some(slot) = out.get_mut(12..16) {
+            slot.copy_from_slice(&crc);
+        }
+        Bundle::parse(&out).map_err(WriteError::Invalid)?;
+        Ok(out)
+    }
+}

@@ -1,0 +1,263 @@
+//! Pyramidal Lucas-Kanade point tracking (Bouguet's iterative scheme).
+
+use super::Point;
+use super::image::{GrayImage, Pyramid};
+
+/// Largest supported window half-size (window `2r + 1` ≤ 21 px).
+pub const MAX_WIN_RADIUS: usize = 10;
+const MAX_WIN: usize = 2 * MAX_WIN_RADIUS + 1;
+const MAX_PATCH: usize = MAX_WIN + 2;
+
+/// Lucas-Kanade parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LkParams {
+    /// Window half-size `r`: the window is `(2r + 1)²` pixels, `1 ..= MAX_WIN_RADIUS`.
+    pub win_radius: usize,
+    /// Pyramid levels used (at most the pyramids' levels).
+    pub levels: usize,
+    /// Most Gauss-Newton iterations per level.
+    pub max_iters: u32,
+    /// Stop iterating when the update is shorter than this (pixels).
+    pub epsilon: f32,
+    /// A point is lost when the smallest eigenvalue of its gradient matrix, divided by
+    /// the window area, falls below this (intensity units² per pixel).
+    pub min_eigen: f32,
+}
+
+impl Default for LkParams {
+    fn default() -> Self {
+        Self {
+            win_radius: 7,
+            levels: 3,
+            max_iters: 20,
+            epsilon: 0.01,
+            min_eigen: 1e-3,
+        }
+    }
+}
+
+#[inline]
+fn floor_i(v: f32) -> isize {
+    let t = v as isize;
+    if (t as f32) > v { t - 1 } else { t }
+}
+
+/// Samples a `w × h` patch whose top-left sample sits at real position `(x0, y0)` with
+/// bilinear interpolation (one set of weights for the whole patch), replicating borders.
+fn sample_patch(img: &GrayImage<'_>, x0: f32, y0: f32, w: usize, h: usize, out: &mut [f32]) {
+    let (ix, iy) = (floor_i(x0), floor_i(y0));
+    let (fx, fy) = (x0 - ix as f32, y0 - iy as f32);
+    let (w00, w10, w01, w11) = (
+        (1.0 - fx) * (1.0 - fy),
+        fx * (1.0 - fy),
+        (1.0 - fx) * fy,
+        fx * fy,
+    );
+    let inside =
+        ix >= 0 && iy >= 0 && (ix as usize) + w < img.width() && (iy as usize) + h < img.height();
+    if inside {
+        let (ux, uy) = (ix as usize, iy as usize);
+        for (j, orow) in out.chunks_exact_mut(w).take(h).enumerate() {
+            let (Some(r0), Some(r1)) = (img.row(uy + j), img.row(uy + j + 1)) else {
+                return;
+            };
+            let (Some(a), Some(b)) = (r0.get(ux..ux + w + 1), r1.get(ux..ux + w + 1)) else {
+                return;
+            };
+            let (a1, b1) = (a.get(1..).unwrap_or(&[]), b.get(1..).unwrap_or(&[]));
+            for (o, (((p00, p10), p01), p11)) in
+                orow.iter_mut().zip(a.iter().zip(a1).zip(b).zip(b1))
+            {
+                *o = w00 * f32::from(*p00)
+                    + w10 * f32::from(*p10)
+                    + w01 * f32::from(*p01)
+                    + w11 * f32::from(*p11);
+            }
+        }
+    } else {
+        for (j, orow) in out.chunks_exact_mut(w).take(h).enumerate() {
+            let y = iy + j as isize;
+            for (i, o) in orow.iter_mut().enumerate() {
+                let x = ix + i as isize;
+                *o = w00 * f32::from(img.clamped(x, y))
+                    + w10 * f32::from(img.clamped(x + 1, y))
+                    + w01 * f32::from(img.clamped(x, y + 1))
+                    + w11 * f32::from(img.clamped(x + 1, y + 1));
+            }
+        }
+    }
+}
+
+/// The template of one point at one level: intensities and Scharr gradients over the
+/// window, and the inverse of the 2×2 gradient matrix.
+struct Template {
+    i: [f32; MAX_WIN * MAX_WIN],
+    ix: [f32; MAX_WIN * MAX_WIN],
+    iy: [f32; MAX_WIN * MAX_WIN],
+    inv: [f32; 3],
+}
+
+impl Template {
+    /// Builds the template around `p`; `None` when the gradient matrix is too weak.
+    fn new(img: &GrayImage<'_>, p: Point, r: usize, min_eigen: f32) -> Option<Self> {
+        let win = 2 * r + 1;
+        let side = win + 2;
+        let mut patch = [0f32; MAX_PATCH * MAX_PATCH];
+        let rf = r as f32;
+        sample_patch(
+            img,
+            p.x - rf - 1.0,
+            p.y - rf - 1.0,
+            side,
+            side,
+            patch.get_mut(..side * side)?,
+        );
+        let mut t = Template {
+            i: [0.0; MAX_WIN * MAX_WIN],
+            ix: [0.0; MAX_WIN * MAX_WIN],
+            iy: [0.0; MAX_WIN * MAX_WIN],
+            inv: [0.0; 3],
+        };
+        let (mut a11, mut a12, mut a22) = (0f32, 0f32, 0f32);
+        let rows = patch.chunks_exact(side);
+        let mut k = 0;
+        let mut prev_rows = rows.clone();
+        let (mut up, mut mid) = (prev_rows.next()?, prev_rows.next()?);
+        for down in prev_rows {
+            for x in 1..=win {
+                let g = |row: &[f32], dx: usize| row.get(x + dx - 1).copied().unwrap_or(0.0);
+                let gx = (3.0 * (g(up, 2) - g(up, 0))
+                    + 10.0 * (g(mid, 2) - g(mid, 0))
+                    + 3.0 * (g(down, 2) - g(down, 0)))
+                    / 32.0;
+                let gy = (3.0 * (g(down, 0) - g(up, 0))
+                    + 10.0 * (g(down, 1) - g(up, 1))
+                    + 3.0 * (g(down, 2) - g(up, 2)))
+                    / 32.0;
+                if let (Some(ti), Some(tx), Some(ty)) =
+                    (t.i.get_mut(k), t.ix.get_mut(k), t.iy.get_mut(k))
+                {
+                    *ti = g(mid, 1);
+                    *tx = gx;
+                    *ty = gy;
+                }
+                a11 += gx * gx;
+                a12 += gx * gy;
+                a22 += gy * gy;
+                k += 1;
+            }
+            up = mid;
+            mid = down;
+        }
+        let area = (win * win) as f32;
+        let min_eig =
+            (a11 + a22 - libm::sqrtf((a11 - a22) * (a11 - a22) + 4.0 * a12 * a12)) / (2.0 * area);
+        let det = a11 * a22 - a12 * a12;
+        if min_eig.is_nan() || min_eig < min_eigen || det.is_nan() || det <= f32::EPSILON {
+            return None;
+        }
+        t.inv = [a22 / det, -a12 / det, a11 / det];
+        Some(t)
+    }
+}
+
+/// Refines `guess` (a position in `next`) so that the window around it matches the
+/// window around `p` in `prev`, both at the same pyramid level. `None` when lost.
+fn track_level(
+    prev: &GrayImage<'_>,
+    next: &GrayImage<'_>,
+    p: Point,
+    guess: Point,
+    prm: &LkParams,
+) -> Option<Point> {
+    let r = prm.win_radius;
+    let win = 2 * r + 1;
+    let n = win * win;
+    let t = Template::new(prev, p, r, prm.min_eigen)?;
+    let [g11, g12, g22] = t.inv;
+    let mut q = guess;
+    let mut j = [0f32; MAX_WIN * MAX_WIN];
+    let rf = r as f32;
+    let (wl, hl) = (next.width() as f32, next.height() as f32);
+    for _ in 0..prm.max_iters {
+        if !(q.x >= -rf && q.y >= -rf && q.x < wl + rf && q.y < hl + rf) {
+            return None;
+        }
+        let js = j.get_mut(..n)?;
+        sample_patch(next, q.x - rf, q.y - rf, win, win, js);
+        let (mut b1, mut b2) = (0f32, 0f32);
+        for (((jv, iv), gx), gy) in js.iter().zip(&t.i).zip(&t.ix).zip(&t.iy) {
+            let d = iv - jv;
+            b1 += d * gx;
+            b2 += d * gy;
+        }
+        let (dx, dy) = (g11 * b1 + g12 * b2, g12 * b1 + g22 * b2);
+        q.x += dx;
+        q.y += dy;
+        if !(q.x.is_finite() && q.y.is_finite()) {
+            return None;
+        }
+        if dx * dx + dy * dy < prm.epsilon * prm.epsilon {
+            break;
+        }
+    }
+    (q.x >= -rf && q.y >= -rf && q.x < wl + rf && q.y < hl + rf).then_some(q)
+}
+
+/// Tracks `p` (level-0 coordinates in `prev`) into `next`, starting from `guess`
+/// (level-0 coordinates in `next`; use `p` when there is no prediction). Coarse to
+/// fine over `min(prm.levels, prev.levels(), next.levels())` levels. `None` when the
+/// point is lost (weak texture, left the image, diverged).
+pub fn track_point(
+    prev: &Pyramid<'_>,
+    next: &Pyramid<'_>,
+    p: Point,
+    guess: Point,
+    prm: &LkParams,
+) -> Option<Point> {
+    if prm.win_radius == 0
+        || prm.win_radius > MAX_WIN_RADIUS
+        || prev.width() != next.width()
+        || prev.height() != next.height()
+    {
+        return None;
+    }
+    let levels = prm.levels.min(prev.levels()).min(next.levels()).max(1);
+    let top = levels - 1;
+    let scale = (1u32 << top) as f32;
+    let mut flow = Point {
+        x: (guess.x - p.x) / scale,
+        y: (guess.y - p.y) / scale,
+    };
+    for l in (0..levels).rev() {
+        let s = 1.0 / (1u32 << l) as f32;
+        let pl = Point {
+            x: p.x * s,
+            y: p.y * s,
+        };
+        let g = Point {
+            x: pl.x + flow.x,
+            y: pl.y + flow.y,
+        };
+        match track_level(&prev.level(l)?, &next.level(l)?, pl, g, prm) {
+            Some(q) => {
+                flow = Point {
+                    x: q.x - pl.x,
+                    y: q.y - pl.y,
+                }
+            }
+            // A weak or escaped window at a coarse level keeps the guess (as OpenCV does);
+            // only level 0 decides that the point is lost.
+            None if l > 0 => {}
+            None => return None,
+        }
+        if l > 0 {
+            flow.x *= 2.0;
+            flow.y *= 2.0;
+        }
+    }
+    Some(Point {
+        x: p.x + flow.x,
+        y: p.y + flow.y,
+    })
+}
