@@ -3,8 +3,9 @@
 //! The computation is scikit-image's `skimage.feature.hog` (so that the two can be
 //! compared value for value):
 //!
-//! * gradients are unnormalised central differences (`I[y+1] − I[y−1]`), zero on the
-//!   image border; on colour images each pixel takes the channel with the largest
+//! * gradients are unnormalised central differences (`I[y+1] − I[y−1]`); the row
+//!   derivative is zero on the first and last row, the column derivative on the first
+//!   and last column; on colour images each pixel takes the channel with the largest
 //!   gradient magnitude (the first one on ties);
 //! * orientations are unsigned, in `[0°, 180°)`, split into `bins` equal bins;
 //! * a cell's histogram is the mean gradient magnitude per bin over its `cell × cell`
@@ -147,16 +148,22 @@ pub fn hog_into(
     for y in 0..hmax {
         let cy = y / cfg.cell;
         for x in 0..wmax {
-            if y == 0 || x == 0 || y + 1 >= height || x + 1 >= width {
-                continue; // zero gradient on the border
-            }
-            // Strongest channel.
+            // Each derivative is zero on its own axis' border only (as scikit-image).
+            let (row_in, col_in) = (y > 0 && y + 1 < height, x > 0 && x + 1 < width);
             let (mut gr, mut gc, mut m2) = (0.0f32, 0.0f32, -1.0f32);
             for ch in 0..channels {
-                let r = img[((y + 1) * width + x) * channels + ch]
-                    - img[((y - 1) * width + x) * channels + ch];
-                let c = img[(y * width + x + 1) * channels + ch]
-                    - img[(y * width + x - 1) * channels + ch];
+                let r = if row_in {
+                    img[((y + 1) * width + x) * channels + ch]
+                        - img[((y - 1) * width + x) * channels + ch]
+                } else {
+                    0.0
+                };
+                let c = if col_in {
+                    img[(y * width + x + 1) * channels + ch]
+                        - img[(y * width + x - 1) * channels + ch]
+                } else {
+                    0.0
+                };
                 let m = r * r + c * c;
                 if m > m2 {
                     (gr, gc, m2) = (r, c, m);
@@ -249,8 +256,8 @@ mod tests {
     #[test]
     fn hand_computed_single_cell() {
         // 4×4 grey image, one 4-pixel cell, one block, 4 bins of 45°.
-        // Columns 0,1 = 0; columns 2,3 = 10: the gradient is horizontal (col
-        // difference 10) at interior pixels (1,1), (1,2), (2,1), (2,2).
+        // Columns 0,1 = 0; columns 2,3 = 10: the column derivative is 10 at columns
+        // 1 and 2 of every row (the row derivative is 0 everywhere).
         #[rustfmt::skip]
         let img = [
             0.0, 0.0, 10.0, 10.0,
@@ -265,7 +272,7 @@ mod tests {
             orientation_interpolation: false,
         };
         let f = hog(&img, 4, 4, 1, &cfg);
-        // Histogram: bin 0 gets 4 × 10 / 16 = 2.5; L2 → [1, 0, 0, 0]; clip 0.2 → [0.2,
+        // Histogram: bin 0 gets 8 × 10 / 16 = 5; L2 → [1, 0, 0, 0]; clip 0.2 → [0.2,
         // 0, 0, 0]; L2 again → [1, 0, 0, 0] (up to ε).
         assert_eq!(f.len(), 4);
         assert!(
@@ -273,12 +280,22 @@ mod tests {
             "{f:?}"
         );
 
-        // A diagonal ramp I = x + y: gradient (row 2, col 2) → 45°, bin 1 with
-        // 45° bins; with 9 bins, bin 2 (40-60°). Two cells of 2 px: 2×2 cells, one
-        // 2×2 block.
+        // A diagonal ramp I = x + y. Interior pixels: gradient (row 2, col 2), 45°,
+        // magnitude √8, bin 1 (45° is a bin boundary, counted upwards). Pixels on the
+        // top/bottom rows (not corners) have only a column derivative: 0°, magnitude
+        // 2, bin 0; on the left/right columns only a row derivative: 90°, bin 2.
+        // Histogram × 16: [4·2, 4·√8, 4·2, 0] = [8, 8√2, 8, 0]; L2 → [0.5, 0.707,
+        // 0.5, 0]; clip → [0.2, 0.2, 0.2, 0]; L2 → 1/√3 each.
         let img: Vec<f32> = (0..16).map(|i| ((i % 4) + (i / 4)) as f32).collect();
         let f = hog(&img, 4, 4, 1, &cfg);
-        assert!((f[1] - 1.0).abs() < 1e-6, "{f:?}");
+        let third = 1.0 / 3.0f32.sqrt();
+        for (got, want) in f.iter().zip([third, third, third, 0.0]) {
+            assert!((got - want).abs() < 1e-5, "{f:?}");
+        }
+        // 2-pixel cells, 9 bins of 20°: by symmetry every cell holds one corner (0),
+        // one 0° pixel (bin 0, magnitude 2), one 90° pixel (bin 4, magnitude 2) and
+        // one 45° pixel (bin 2, magnitude √8). The block's 12 non-zero values all clip
+        // to 0.2 and renormalise to 1/√12.
         let cfg = HogConfig {
             cell: 2,
             block: 2,
@@ -287,31 +304,45 @@ mod tests {
         };
         let f = hog(&img, 4, 4, 1, &cfg);
         assert_eq!(f.len(), 36);
-        // Each cell has exactly one interior pixel, magnitude √8, mean √8/4 in bin 2;
-        // the block is 4 equal values: L2 → 0.5 each, clip 0.2, renormalise → 0.5.
+        let twelfth = 1.0 / 12.0f32.sqrt();
         for (i, v) in f.iter().enumerate() {
-            let want = if i % 9 == 2 { 0.5 } else { 0.0 };
+            let want = if [0, 2, 4].contains(&(i % 9)) {
+                twelfth
+            } else {
+                0.0
+            };
             assert!((v - want).abs() < 1e-5, "feature {i} = {v}");
         }
     }
 
     #[test]
     fn interpolation_splits_votes_between_neighbouring_bins() {
-        // Gradient at 45° with 4 bins of 45° (centres 22.5°, 67.5°): half each.
+        // The ramp again, 9 bins of 20° centred at 10°, 30°, …, 170°. Hard binning
+        // fills bins 0 (0°), 2 (45°) and 4 (90°). With interpolation 45° splits
+        // between bins 1 and 2 (¼, ¾), 0° between bins 8 and 0 (wrapping, ½ each),
+        // 90° sits on bin 4's centre.
         let img: Vec<f32> = (0..16).map(|i| ((i % 4) + (i / 4)) as f32).collect();
-        let cfg = HogConfig {
-            cell: 4,
-            block: 1,
-            bins: 4,
-            orientation_interpolation: true,
+        let nonzero = |interp| {
+            let cfg = HogConfig {
+                cell: 4,
+                block: 1,
+                bins: 9,
+                orientation_interpolation: interp,
+            };
+            let f = hog(&img, 4, 4, 1, &cfg);
+            (0..9).filter(|&k| f[k] > 0.0).collect::<Vec<_>>()
         };
-        let f = hog(&img, 4, 4, 1, &cfg);
-        assert!((f[0] - f[1]).abs() < 1e-5 && f[0] > 0.5, "{f:?}");
+        assert_eq!(nonzero(false), vec![0, 2, 4]);
+        assert_eq!(nonzero(true), vec![0, 1, 2, 4, 8]);
     }
 
     #[test]
     fn colour_takes_the_strongest_channel() {
-        // Red varies along columns weakly, blue along rows strongly: blue wins.
+        // Red = x (column derivative 2), blue = 10·y (row derivative 20). Interior
+        // and left/right-column pixels take blue: 90°, magnitude 20 (8 pixels).
+        // Top/bottom-row pixels have no row derivative and take red: 0°, magnitude 2
+        // (4 pixels). × 16: [8, 0, 160, 0] → L2 → [a, 0, b, 0] with a = 8 / √(8² +
+        // 160²) → clip b to 0.2 → L2.
         let mut img = vec![0.0f32; 4 * 4 * 3];
         for y in 0..4 {
             for x in 0..4 {
@@ -326,7 +357,11 @@ mod tests {
             orientation_interpolation: false,
         };
         let f = hog(&img, 4, 4, 3, &cfg);
-        assert!((f[2] - 1.0).abs() < 1e-6, "90° is bin 2: {f:?}");
+        let a = 8.0 / (8.0f32 * 8.0 + 160.0 * 160.0).sqrt();
+        let n = (a * a + 0.2 * 0.2).sqrt();
+        for (got, want) in f.iter().zip([a / n, 0.0, 0.2 / n, 0.0]) {
+            assert!((got - want).abs() < 1e-4, "{f:?}");
+        }
     }
 
     #[test]
