@@ -46,6 +46,7 @@ pub mod glue;
 pub mod loss;
 pub mod metrics;
 mod model;
+pub mod onnx;
 pub mod optim;
 pub mod roi_align;
 pub mod train;

@@ -128,9 +128,13 @@ impl GraphBuilder {
 
     /// Declare a float graph input; returns its name.
     pub fn input(&mut self, name: &str, dims: &[Dim]) -> String {
+        self.input_typed(name, data_type::FLOAT, dims)
+    }
+
+    /// Declare a graph input of element type `elem_type` (one of [`data_type`]).
+    pub fn input_typed(&mut self, name: &str, elem_type: i32, dims: &[Dim]) -> String {
         let name = self.fresh(name);
-        self.inputs
-            .push(value_info(&name, data_type::FLOAT, dims));
+        self.inputs.push(value_info(&name, elem_type, dims));
         name
     }
 

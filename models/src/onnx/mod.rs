@@ -5,9 +5,14 @@
 //! feature); the drone never links protobuf code.
 
 pub mod builder;
+pub mod export;
 pub mod proto;
 
 pub use builder::{Dim, GraphBuilder, OPSET, attr_float, attr_int, attr_ints, attr_string};
+pub use export::{
+    BACKBONE_RPN_FILE, DetectorGraphs, ExportedFiles, ROI_HEAD_FILE, detector_graphs,
+    export_detector,
+};
 
 use prost::Message;
 use std::io::Write;
@@ -16,7 +21,10 @@ use std::path::Path;
 /// Encode `model` and write it to `path` atomically (a temporary file in the same
 /// folder, then a rename), so a failed write never replaces a good file.
 pub fn save_model(model: &proto::ModelProto, path: &Path) -> std::io::Result<()> {
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     std::fs::create_dir_all(dir)?;
     let mut tmp = tempfile::NamedTempFile::new_in(dir)?;
     tmp.write_all(&model.encode_to_vec())?;

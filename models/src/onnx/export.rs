@@ -1,0 +1,411 @@
+//! Export of the [`FasterRcnn`] detector as two ONNX graphs.
+//!
+//! **Why a split.** The detector is exported as two graphs with the Rust glue of
+//! [`crate::glue`] between them, exactly where the tch model splits:
+//!
+//! 1. `backbone_rpn.onnx`: `image [1, 3, H, W]` → `features [1, C, h, w]`,
+//!    `objectness [1, A, h, w]`, `deltas [1, 4A, h, w]`;
+//! 2. proposals in Rust ([`crate::glue::proposals`]: decode, clip, top-k, NMS);
+//! 3. `roi_head.onnx`: `features`, `rois [R, 4]`, `batch_indices [R]` (int64) →
+//!    `class_logits [R, K+1]`, `box_deltas [R, 4K]` (ONNX `RoiAlign`, `half_pixel`);
+//! 4. detections in Rust ([`crate::glue::detections`]: softmax, decode, per-class NMS).
+//!
+//! The alternative, one graph with ONNX `NonMaxSuppression`, `TopK` and the box decoding
+//! as tensor ops, would save one hand-over of the feature map per frame but ties the
+//! NMS semantics (ordering of ties, per-class handling, score threshold) to ONNX
+//! Runtime's kernels; with the split, the tch model and the ONNX executor share the
+//! same post-processing code and agree by construction. The hand-over's cost is
+//! measured by the latency harness (the `glue` column of `frugal bench`).
+//!
+//! Every graph records the glue's parameters in its metadata (`frugal.*` keys), so an
+//! exported pair is self-describing: an executor needs nothing but the two files.
+
+use super::builder::{Dim, GraphBuilder, attr_float, attr_int, attr_ints, attr_string};
+use super::proto::{ModelProto, data_type};
+use crate::{FasterRcnn, ModelError};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use tch::{Kind, Tensor};
+
+/// File name of the first graph in an export folder.
+pub const BACKBONE_RPN_FILE: &str = "backbone_rpn.onnx";
+/// File name of the second graph in an export folder.
+pub const ROI_HEAD_FILE: &str = "roi_head.onnx";
+
+/// The two graphs of an exported detector, in memory.
+pub struct DetectorGraphs {
+    /// `image → features, objectness, deltas`.
+    pub backbone_rpn: ModelProto,
+    /// `features, rois, batch_indices → class_logits, box_deltas`.
+    pub roi_head: ModelProto,
+}
+
+/// Where [`export_detector`] wrote the graphs.
+#[derive(Clone, Debug)]
+pub struct ExportedFiles {
+    /// `backbone_rpn.onnx`.
+    pub backbone_rpn: PathBuf,
+    /// `roi_head.onnx`.
+    pub roi_head: PathBuf,
+}
+
+/// A weight tensor as `(shape, values)`.
+fn weights(vars: &HashMap<String, Tensor>, name: &str) -> Result<(Vec<i64>, Vec<f32>), ModelError> {
+    let t = vars.get(name).ok_or_else(|| ModelError::Config {
+        file: "model".into(),
+        msg: format!("the model has no tensor `{name}` to export"),
+    })?;
+    let values =
+        Vec::<f32>::try_from(t.detach().to_kind(Kind::Float).flatten(0, -1)).map_err(|e| {
+            ModelError::Torch {
+                file: name.into(),
+                msg: e.to_string(),
+            }
+        })?;
+    Ok((t.size(), values))
+}
+
+/// The glue parameters an executor needs, as `frugal.*` metadata entries.
+fn glue_metadata(model: &FasterRcnn, height: usize, width: usize) -> Vec<(&'static str, String)> {
+    let c = model.config();
+    let list = |v: &[f32]| {
+        v.iter()
+            .map(|x| x.to_string())
+            .collect::<Vec<_>>()
+            .join(",")
+    };
+    vec![
+        ("frugal.format", "faster-rcnn-split/1".into()),
+        ("frugal.input_height", height.to_string()),
+        ("frugal.input_width", width.to_string()),
+        ("frugal.num_classes", c.num_classes.to_string()),
+        ("frugal.stride", c.stride().to_string()),
+        ("frugal.anchor_sizes", list(&c.anchor_sizes)),
+        ("frugal.anchor_ratios", list(&c.anchor_ratios)),
+        ("frugal.pixel_mean", list(&c.pixel_mean)),
+        ("frugal.pixel_std", list(&c.pixel_std)),
+        ("frugal.pre_nms", c.pre_nms_test.to_string()),
+        ("frugal.post_nms", c.post_nms_test.to_string()),
+        ("frugal.rpn_nms_iou", c.rpn_nms_iou.to_string()),
+        ("frugal.min_box_size", c.min_box_size.to_string()),
+        ("frugal.score_threshold", c.score_threshold.to_string()),
+        ("frugal.nms_iou", c.nms_iou.to_string()),
+        ("frugal.max_detections", c.max_detections.to_string()),
+        (
+            "frugal.config",
+            serde_json::to_string(c).unwrap_or_default(),
+        ),
+    ]
+}
+
+/// A 3×3 (or 1×1) conv with padding `k / 2` from the VarStore layer `prefix`.
+fn conv(
+    g: &mut GraphBuilder,
+    vars: &HashMap<String, Tensor>,
+    x: &str,
+    prefix: &str,
+    stride: i64,
+) -> Result<String, ModelError> {
+    let (wshape, w) = weights(vars, &format!("{prefix}.weight"))?;
+    let (bshape, b) = weights(vars, &format!("{prefix}.bias"))?;
+    let k = wshape.get(2).copied().unwrap_or(1);
+    let wn = g.constant_f32(&format!("{prefix}.weight"), &wshape, &w);
+    let bn = g.constant_f32(&format!("{prefix}.bias"), &bshape, &b);
+    let p = k / 2;
+    Ok(g.node(
+        "Conv",
+        prefix,
+        &[x, &wn, &bn],
+        vec![
+            attr_ints("kernel_shape", &[k, k]),
+            attr_ints("strides", &[stride, stride]),
+            attr_ints("pads", &[p, p, p, p]),
+        ],
+    ))
+}
+
+/// A fully connected layer `y = x Wᵀ + b` (ONNX `Gemm` with `transB = 1`).
+fn linear(
+    g: &mut GraphBuilder,
+    vars: &HashMap<String, Tensor>,
+    x: &str,
+    prefix: &str,
+) -> Result<String, ModelError> {
+    let (wshape, w) = weights(vars, &format!("{prefix}.weight"))?;
+    let (bshape, b) = weights(vars, &format!("{prefix}.bias"))?;
+    let wn = g.constant_f32(&format!("{prefix}.weight"), &wshape, &w);
+    let bn = g.constant_f32(&format!("{prefix}.bias"), &bshape, &b);
+    Ok(g.node("Gemm", prefix, &[x, &wn, &bn], vec![attr_int("transB", 1)]))
+}
+
+/// Build both graphs for `height × width` input frames.
+pub fn detector_graphs(
+    model: &FasterRcnn,
+    height: usize,
+    width: usize,
+) -> Result<DetectorGraphs, ModelError> {
+    let cfg = model.config();
+    let vars = model.var_store().variables();
+    let (fh, fw) = crate::glue::feature_size(cfg, height, width);
+    let a = cfg.anchors_per_cell() as i64;
+    let c = cfg.feature_channels();
+    let meta = glue_metadata(model, height, width);
+
+    let mut g = GraphBuilder::new("backbone_rpn");
+    let image = g.input(
+        "image",
+        &[
+            Dim::Fixed(1),
+            3.into(),
+            (height as i64).into(),
+            (width as i64).into(),
+        ],
+    );
+    let mut x = image;
+    for (i, block) in cfg.backbone.iter().enumerate() {
+        for j in 0..block.convs {
+            let stride = if j == 0 { block.stride } else { 1 };
+            let y = conv(
+                &mut g,
+                &vars,
+                &x,
+                &format!("backbone.block{i}.conv{j}"),
+                stride,
+            )?;
+            x = g.node("Relu", &format!("backbone.block{i}.relu{j}"), &[&y], vec![]);
+        }
+    }
+    let features = g.node("Identity", "features", &[&x], vec![]);
+    let h = conv(&mut g, &vars, &features, "rpn.conv", 1)?;
+    let h = g.node("Relu", "rpn.relu", &[&h], vec![]);
+    let obj = conv(&mut g, &vars, &h, "rpn.objectness", 1)?;
+    let obj = g.node("Identity", "objectness", &[&obj], vec![]);
+    let del = conv(&mut g, &vars, &h, "rpn.deltas", 1)?;
+    let del = g.node("Identity", "deltas", &[&del], vec![]);
+    let (fh, fw) = (fh as i64, fw as i64);
+    g.output(
+        &features,
+        data_type::FLOAT,
+        &[1.into(), c.into(), fh.into(), fw.into()],
+    );
+    g.output(
+        &obj,
+        data_type::FLOAT,
+        &[1.into(), a.into(), fh.into(), fw.into()],
+    );
+    g.output(
+        &del,
+        data_type::FLOAT,
+        &[1.into(), (4 * a).into(), fh.into(), fw.into()],
+    );
+    let backbone_rpn = g.finish(
+        "frugal Faster-R-CNN-style detector, part 1: backbone + RPN head",
+        &meta,
+    );
+
+    let mut g = GraphBuilder::new("roi_head");
+    let features = g.input("features", &[1.into(), c.into(), fh.into(), fw.into()]);
+    let rois = g.input("rois", &[Dim::Named("rois"), 4.into()]);
+    let batch = g.input_typed("batch_indices", data_type::INT64, &[Dim::Named("rois")]);
+    let ra = model.roi_align_params();
+    let pooled = g.node(
+        "RoiAlign",
+        "roi_head.roi_align",
+        &[&features, &rois, &batch],
+        vec![
+            attr_string("coordinate_transformation_mode", "half_pixel"),
+            attr_string("mode", "avg"),
+            attr_int("output_height", ra.output_size),
+            attr_int("output_width", ra.output_size),
+            attr_int("sampling_ratio", ra.sampling_ratio),
+            attr_float("spatial_scale", ra.spatial_scale as f32),
+        ],
+    );
+    let flat = g.node(
+        "Flatten",
+        "roi_head.flatten",
+        &[&pooled],
+        vec![attr_int("axis", 1)],
+    );
+    let h = linear(&mut g, &vars, &flat, "roi_head.fc1")?;
+    let h = g.node("Relu", "roi_head.relu1", &[&h], vec![]);
+    let h = linear(&mut g, &vars, &h, "roi_head.fc2")?;
+    let h = g.node("Relu", "roi_head.relu2", &[&h], vec![]);
+    let logits = linear(&mut g, &vars, &h, "roi_head.class_logits")?;
+    let logits = g.node("Identity", "class_logits", &[&logits], vec![]);
+    let deltas = linear(&mut g, &vars, &h, "roi_head.box_deltas")?;
+    let deltas = g.node("Identity", "box_deltas", &[&deltas], vec![]);
+    let k = cfg.num_classes as i64;
+    g.output(
+        &logits,
+        data_type::FLOAT,
+        &[Dim::Named("rois"), (k + 1).into()],
+    );
+    g.output(
+        &deltas,
+        data_type::FLOAT,
+        &[Dim::Named("rois"), (4 * k).into()],
+    );
+    let roi_head = g.finish(
+        "frugal Faster-R-CNN-style detector, part 2: RoI head",
+        &meta,
+    );
+    Ok(DetectorGraphs {
+        backbone_rpn,
+        roi_head,
+    })
+}
+
+/// Export `model` for `height × width` frames into `dir` (both files written
+/// atomically).
+pub fn export_detector(
+    model: &FasterRcnn,
+    height: usize,
+    width: usize,
+    dir: &Path,
+) -> Result<ExportedFiles, ModelError> {
+    let graphs = detector_graphs(model, height, width)?;
+    let files = ExportedFiles {
+        backbone_rpn: dir.join(BACKBONE_RPN_FILE),
+        roi_head: dir.join(ROI_HEAD_FILE),
+    };
+    super::save_model(&graphs.backbone_rpn, &files.backbone_rpn)
+        .map_err(|e| ModelError::io(&files.backbone_rpn, e))?;
+    super::save_model(&graphs.roi_head, &files.roi_head)
+        .map_err(|e| ModelError::io(&files.roi_head, e))?;
+    Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::{BlockConfig, ModelConfig};
+    use std::process::Command;
+
+    fn tiny() -> FasterRcnn {
+        tch::manual_seed(3);
+        let cfg = ModelConfig {
+            num_classes: 3,
+            backbone: vec![
+                BlockConfig {
+                    out_channels: 8,
+                    stride: 2,
+                    convs: 1,
+                },
+                BlockConfig {
+                    out_channels: 16,
+                    stride: 2,
+                    convs: 2,
+                },
+            ],
+            rpn_channels: 8,
+            roi_hidden: 32,
+            ..ModelConfig::default()
+        };
+        FasterRcnn::new(cfg, tch::Device::Cpu).unwrap()
+    }
+
+    fn write_f32(path: &Path, t: &Tensor) {
+        let v = Vec::<f32>::try_from(t.to_kind(Kind::Float).flatten(0, -1)).unwrap();
+        std::fs::write(
+            path,
+            v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>(),
+        )
+        .unwrap();
+    }
+
+    /// Run the Python checker and onnxruntime on one graph; returns the max abs diffs.
+    fn python_check(model: &Path, spec: serde_json::Value, dir: &Path) -> HashMap<String, f64> {
+        let python = std::env::var_os("FRUGAL_PYTHON")
+            .expect("FRUGAL_PYTHON is not set: run `cargo xtask setup`");
+        let spec_path = dir.join(format!(
+            "{}.json",
+            model.file_stem().unwrap().to_string_lossy()
+        ));
+        std::fs::write(&spec_path, spec.to_string()).unwrap();
+        let out = Command::new(python)
+            .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tools/onnx_check.py"))
+            .arg(model)
+            .arg(&spec_path)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(v["checker"], "ok");
+        serde_json::from_value(v["max_abs_diff"].clone()).unwrap()
+    }
+
+    #[test]
+    fn exported_graphs_pass_the_onnx_checker_and_match_tch_in_onnxruntime() {
+        let model = tiny();
+        let dir = tempfile::tempdir().unwrap();
+        let (h, w) = (40usize, 56usize);
+        let files = export_detector(&model, h, w, dir.path()).unwrap();
+        let image = Tensor::randn([1, 3, h as i64, w as i64], (Kind::Float, tch::Device::Cpu));
+        let out = tch::no_grad(|| model.backbone_rpn(&image));
+        let p = |n: &str| dir.path().join(n);
+        write_f32(&p("image.bin"), &image);
+        write_f32(&p("features.bin"), &out.features);
+        write_f32(&p("objectness.bin"), &out.objectness);
+        write_f32(&p("deltas.bin"), &out.deltas);
+        let f = out.features.size();
+        let diffs = python_check(
+            &files.backbone_rpn,
+            serde_json::json!({
+                "inputs": {"image": {"shape": [1, 3, h, w], "dtype": "float32", "file": p("image.bin")}},
+                "outputs": {
+                    "features": {"file": p("features.bin")},
+                    "objectness": {"file": p("objectness.bin")},
+                    "deltas": {"file": p("deltas.bin")},
+                },
+            }),
+            dir.path(),
+        );
+        for (name, d) in &diffs {
+            assert!(*d < 1e-4, "{name}: max abs diff {d}");
+        }
+
+        // RoIs inside, across and partly outside the image.
+        let rois = [
+            [2.0f32, 3.0, 20.0, 30.0],
+            [10.5, 0.0, 55.0, 39.0],
+            [-4.0, 30.0, 12.0, 48.0],
+        ];
+        let rois_t = Tensor::from_slice(&rois.concat()).reshape([3, 4]);
+        let (logits, deltas) = tch::no_grad(|| model.roi_head(&out.features, &rois_t, &[0, 0, 0]));
+        write_f32(&p("rois.bin"), &rois_t);
+        std::fs::write(
+            p("batch.bin"),
+            [0i64; 3]
+                .iter()
+                .flat_map(|x| x.to_le_bytes())
+                .collect::<Vec<u8>>(),
+        )
+        .unwrap();
+        write_f32(&p("logits.bin"), &logits);
+        write_f32(&p("box_deltas.bin"), &deltas);
+        let diffs = python_check(
+            &files.roi_head,
+            serde_json::json!({
+                "inputs": {
+                    "features": {"shape": f, "dtype": "float32", "file": p("features.bin")},
+                    "rois": {"shape": [3, 4], "dtype": "float32", "file": p("rois.bin")},
+                    "batch_indices": {"shape": [3], "dtype": "int64", "file": p("batch.bin")},
+                },
+                "outputs": {
+                    "class_logits": {"file": p("logits.bin")},
+                    "box_deltas": {"file": p("box_deltas.bin")},
+                },
+            }),
+            dir.path(),
+        );
+        assert_eq!(diffs.len(), 2);
+        for (name, d) in &diffs {
+            assert!(*d < 1e-4, "{name}: max abs diff {d}");
+        }
+    }
+}
