@@ -35,7 +35,7 @@ pub fn feature_size(cfg: &ModelConfig, height: usize, width: usize) -> (usize, u
 }
 
 /// Parameters of [`proposals`].
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ProposalParams {
     /// Best anchors kept before NMS.
     pub pre_nms: usize,
@@ -84,7 +84,7 @@ pub fn proposals(
 }
 
 /// Parameters of [`detections`].
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DetectionParams {
     /// Number of object classes `K`.
     pub num_classes: usize,

@@ -5,10 +5,12 @@
 //! feature); the drone never links protobuf code.
 
 pub mod builder;
+pub mod executor;
 pub mod export;
 pub mod proto;
 
 pub use builder::{Dim, GraphBuilder, OPSET, attr_float, attr_int, attr_ints, attr_string};
+pub use executor::{GlueSpec, OrtDetector, OrtError, StageTimes};
 pub use export::{
     BACKBONE_RPN_FILE, DetectorGraphs, ExportedFiles, ROI_HEAD_FILE, detector_graphs,
     export_detector,
