@@ -2,9 +2,11 @@
 #![deny(missing_docs)]
 
 pub mod front;
+pub mod latency;
 pub mod plot;
 pub mod stats;
 
 pub use front::{Point, dominators, front};
+pub use latency::measure;
 pub use plot::{FrontPlot, PlotError, plot_front};
 pub use stats::Latency;

@@ -5,6 +5,10 @@
 use clap::{Parser, Subcommand};
 use std::ffi::OsString;
 
+pub mod bench;
+pub mod data;
+pub mod run;
+
 /// frugal: fast-enough sign detection for small drones.
 ///
 /// The pipeline runs data → train → compress → pareto → policy → bundle → fly; each
@@ -17,7 +21,16 @@ struct Cli {
 }
 
 #[derive(Subcommand)]
-enum Command {}
+enum Command {
+    /// Synthetic dataset generation, import, export, summary and inspection.
+    Data(data::DataArgs),
+    /// Export a trained detector to ONNX (backbone + RPN graph, RoI-head graph).
+    Export(bench::ExportArgs),
+    /// Time a detector per frame through ONNX Runtime and libtorch, side by side.
+    Bench(bench::BenchArgs),
+    /// Run the pipeline into one run folder (currently: the data stage).
+    Run(run::RunArgs),
+}
 
 /// Parse `args` (the first is the program name) and run the subcommand.
 ///
@@ -29,7 +42,12 @@ where
     T: Into<OsString> + Clone,
 {
     let cli = Cli::try_parse_from(args)?;
-    match cli.command {}
+    match cli.command {
+        Command::Data(args) => data::run(args),
+        Command::Run(args) => run::run(args),
+        Command::Export(args) => bench::export(args),
+        Command::Bench(args) => bench::bench(args),
+    }
 }
 
 /// Run the CLI and turn the outcome into a process exit code: 0 on success, 2 for a
