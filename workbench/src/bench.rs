@@ -3,7 +3,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use frugal_data::{Dataset, Split};
 use frugal_models::FasterRcnn;
-use frugal_models::onnx::{OrtDetector, export_detector};
+use frugal_models::onnx::{OrtDetector, export_detector, parity};
 use frugal_pareto::{Latency, measure};
 use frugal_runtime::FrameRef;
 use serde::Serialize;
@@ -24,6 +24,13 @@ pub struct ExportArgs {
     /// Input frame height the graphs are fixed to.
     #[arg(long, default_value_t = 270)]
     pub height: usize,
+    /// Check the export against the tch model on this dataset's test frames: raw
+    /// outputs within 1e-4 and the same detections (same class, IoU ≥ 0.99).
+    #[arg(long)]
+    pub check: Option<PathBuf>,
+    /// How many test frames the check uses.
+    #[arg(long, default_value_t = 50)]
+    pub check_frames: usize,
 }
 
 /// Time one detector per frame through ONNX Runtime and libtorch, side by side.
@@ -78,6 +85,20 @@ pub fn export(args: ExportArgs) -> Result<()> {
         args.width,
         args.height
     );
+    if let Some(data) = &args.check {
+        let frames = test_frames(data, args.check_frames)?;
+        let mut ort = OrtDetector::open(&args.out, 1)?;
+        let r = parity(&model, &mut ort, &frames)?;
+        println!(
+            "parity on {} test frames: max raw output difference {:.2e}; detections tch {} / onnxruntime {}, \
+             {} matched (same class, IoU ≥ 0.99), min IoU {:.4}",
+            r.frames, r.max_raw_diff, r.tch_detections, r.ort_detections, r.matched, r.min_iou
+        );
+        anyhow::ensure!(
+            r.agrees(1e-4),
+            "the export does not agree with the tch model"
+        );
+    }
     Ok(())
 }
 

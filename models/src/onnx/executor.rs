@@ -485,7 +485,6 @@ mod tests {
     use crate::FasterRcnn;
     use crate::config::{BlockConfig, ModelConfig};
     use crate::onnx::export_detector;
-    use tch::{Kind, Tensor};
 
     fn tiny(seed: i64) -> FasterRcnn {
         tch::manual_seed(seed);
@@ -535,59 +534,19 @@ mod tests {
         export_detector(&model, h as usize, w as usize, dir.path()).unwrap();
         let mut ort = OrtDetector::open(dir.path(), 1).unwrap();
         assert_eq!(ort.spec().num_classes, 3);
-        let mut compared = 0;
-        for k in 0..6 {
-            let px = frame(w, h, k);
-            let f = FrameRef::new(w, h, &px).unwrap();
-            // raw outputs of both graphs
-            let image = model.frame_tensor(f);
-            let out = tch::no_grad(|| model.backbone_rpn(&image));
-            let (feat, obj, del) = ort
-                .run_backbone(Vec::<f32>::try_from(image.flatten(0, -1)).unwrap())
-                .unwrap();
-            for (mine, theirs) in [
-                (&out.features, &feat),
-                (&out.objectness, &obj),
-                (&out.deltas, &del),
-            ] {
-                let t = Vec::<f32>::try_from(mine.to_kind(Kind::Float).flatten(0, -1)).unwrap();
-                assert_eq!(t.len(), theirs.len());
-                let d = t
-                    .iter()
-                    .zip(theirs)
-                    .map(|(a, b)| (a - b).abs())
-                    .fold(0.0, f32::max);
-                assert!(d < 1e-4, "backbone output differs by {d}");
-            }
-            let props = model.proposals_of(&out, 0, (h as usize, w as usize), false);
-            let rois = crate::boxes_tensor(&props);
-            let (l, d) =
-                tch::no_grad(|| model.roi_head(&out.features, &rois, &vec![0; props.len()]));
-            let (l2, d2) = ort.run_head(feat, &props).unwrap();
-            for (mine, theirs) in [(&l, &l2), (&d, &d2)] {
-                let t = Vec::<f32>::try_from(mine.flatten(0, -1)).unwrap();
-                let diff = t
-                    .iter()
-                    .zip(theirs)
-                    .map(|(a, b)| (a - b).abs())
-                    .fold(0.0, f32::max);
-                assert!(diff < 1e-4, "head output differs by {diff}");
-            }
-            // final detections
-            let a = model.detect(f);
-            let b = ort.detect(f).unwrap();
-            assert_eq!(a.len(), b.len());
-            for (x, y) in a.iter().zip(&b) {
-                assert_eq!(x.class, y.class);
-                assert!(x.bbox.iou(&y.bbox) >= 0.99);
-                assert!((x.score - y.score).abs() < 1e-4);
-            }
-            compared += a.len();
-        }
+        let frames: Vec<_> = (0..6).map(|k| (w, h, frame(w, h, k))).collect();
+        let r = crate::onnx::parity(&model, &mut ort, &frames).unwrap();
+        assert_eq!(r.frames, 6);
         assert!(
-            compared > 0,
+            r.max_raw_diff < 1e-4,
+            "raw outputs differ by {}",
+            r.max_raw_diff
+        );
+        assert!(
+            r.tch_detections > 0,
             "no detections to compare: make the test frames richer"
         );
+        assert!(r.agrees(1e-4), "{r:?}");
     }
 
     #[test]

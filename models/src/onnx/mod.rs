@@ -7,6 +7,7 @@
 pub mod builder;
 pub mod executor;
 pub mod export;
+pub mod parity;
 pub mod proto;
 
 pub use builder::{Dim, GraphBuilder, OPSET, attr_float, attr_int, attr_ints, attr_string};
@@ -15,6 +16,7 @@ pub use export::{
     BACKBONE_RPN_FILE, DetectorGraphs, ExportedFiles, ROI_HEAD_FILE, detector_graphs,
     export_detector,
 };
+pub use parity::{ParityReport, parity};
 
 use prost::Message;
 use std::io::Write;
