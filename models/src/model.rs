@@ -4,7 +4,7 @@ use crate::ModelError;
 use crate::boxes;
 use crate::config::ModelConfig;
 use crate::glue::{self, DetectionParams, ProposalParams};
-use crate::roi_align::{RoiAlignParams, roi_align};
+use crate::roi_align::{RoiAlignParams, roi_align_gather};
 use frugal_runtime::{BBox, Detection, Detector, FrameRef};
 use std::path::Path;
 use tch::{Device, Kind, Tensor, nn, nn::Module};
@@ -229,13 +229,20 @@ impl FasterRcnn {
 
     /// Network part 2: features and RoIs (`[R, 4]` image pixels, with the image index
     /// of each) → class logits `[R, K+1]` and class-specific box deltas `[R, 4K]`.
+    /// RoIAlign runs as [`roi_align_gather`] (same values as ONNX `RoiAlign`).
     pub fn roi_head(
         &self,
         features: &Tensor,
         rois: &Tensor,
         batch_indices: &[i64],
     ) -> (Tensor, Tensor) {
-        let pooled = roi_align(features, rois, batch_indices, self.roi_align_params());
+        let flat = Vec::<f32>::try_from(rois.detach().to_kind(Kind::Float).flatten(0, -1))
+            .unwrap_or_default();
+        let boxes: Vec<BBox> = flat
+            .chunks_exact(4)
+            .map(|c| BBox::new(c[0], c[1], c[2], c[3]))
+            .collect();
+        let pooled = roi_align_gather(features, &boxes, batch_indices, self.roi_align_params());
         let x = pooled
             .flatten(1, -1)
             .apply(&self.fc1)

@@ -9,6 +9,7 @@
 //!   `start + (p + (i + 0.5)/sampling_ratio)·bin`;
 //! - a sample outside `[-1, W] × [-1, H]` counts as 0; inside, coordinates are clamped
 //!   to `[0, W−1] × [0, H−1]` (`grid_sampler` with border padding, `align_corners = false`).
+use frugal_runtime::BBox;
 use tch::{Kind, Tensor};
 
 /// RoIAlign parameters (the ONNX node's attributes).
@@ -96,6 +97,110 @@ pub fn roi_align(
         inverse[i as usize] = j as i64;
     }
     cat.index_select(0, &Tensor::from_slice(&inverse).to_device(dev))
+}
+
+/// Bilinear taps of one sample point in ONNX `RoiAlign` semantics: up to four
+/// `(y·W + x, weight)` pairs (none when the point lies outside `[-1, H] × [-1, W]`).
+fn taps(mut y: f32, mut x: f32, h: usize, w: usize, out: &mut Vec<(usize, f32)>) {
+    if y < -1.0 || y > h as f32 || x < -1.0 || x > w as f32 {
+        return;
+    }
+    y = y.max(0.0);
+    x = x.max(0.0);
+    let (mut yl, mut xl) = (y as usize, x as usize);
+    let (yh, xh);
+    if yl >= h - 1 {
+        yl = h - 1;
+        yh = h - 1;
+        y = yl as f32;
+    } else {
+        yh = yl + 1;
+    }
+    if xl >= w - 1 {
+        xl = w - 1;
+        xh = w - 1;
+        x = xl as f32;
+    } else {
+        xh = xl + 1;
+    }
+    let (ly, lx) = (y - yl as f32, x - xl as f32);
+    let (hy, hx) = (1.0 - ly, 1.0 - lx);
+    out.extend([
+        (yl * w + xl, hy * hx),
+        (yl * w + xh, hy * lx),
+        (yh * w + xl, ly * hx),
+        (yh * w + xh, ly * lx),
+    ]);
+}
+
+/// The same RoIAlign as [`roi_align`], computed as a weighted gather
+/// (`embedding_bag` over the feature map's pixels): the bilinear weights of every bin
+/// are computed here in Rust, following ONNX Runtime's RoiAlign step by step, and
+/// libtorch sums the weighted feature rows. Differentiable with respect to the
+/// features; several times faster than `grid_sampler` on CPU for small maps.
+pub fn roi_align_gather(
+    features: &Tensor,
+    rois: &[BBox],
+    batch_indices: &[i64],
+    p: RoiAlignParams,
+) -> Tensor {
+    let (b, c, h, w) = features.size4().expect("features must be [B, C, H, W]");
+    let out = p.output_size as usize;
+    let sr = p.sampling_ratio as usize;
+    let dev = features.device();
+    if rois.is_empty() {
+        return Tensor::zeros([0, c, out as i64, out as i64], (features.kind(), dev));
+    }
+    let (hu, wu) = (h as usize, w as usize);
+    let s = p.spatial_scale as f32;
+    let norm = 1.0 / (sr * sr) as f32;
+    let mut idx: Vec<i64> = Vec::with_capacity(rois.len() * out * out * sr * sr * 4);
+    let mut wts: Vec<f32> = Vec::with_capacity(idx.capacity());
+    let mut offsets: Vec<i64> = Vec::with_capacity(rois.len() * out * out);
+    let mut tap = Vec::with_capacity(4);
+    for (roi, &bi) in rois.iter().zip(batch_indices) {
+        let base = bi as usize * hu * wu;
+        let (x0, y0) = (roi.x1 * s - 0.5, roi.y1 * s - 0.5);
+        let (bw, bh) = (
+            (roi.x2 * s - 0.5 - x0) / out as f32,
+            (roi.y2 * s - 0.5 - y0) / out as f32,
+        );
+        for py in 0..out {
+            for px in 0..out {
+                offsets.push(idx.len() as i64);
+                for iy in 0..sr {
+                    let y = y0 + py as f32 * bh + (iy as f32 + 0.5) * bh / sr as f32;
+                    for ix in 0..sr {
+                        let x = x0 + px as f32 * bw + (ix as f32 + 0.5) * bw / sr as f32;
+                        tap.clear();
+                        taps(y, x, hu, wu, &mut tap);
+                        for &(i, wt) in &tap {
+                            idx.push((base + i) as i64);
+                            wts.push(wt * norm);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let table = features.permute([0, 2, 3, 1]).reshape([b * h * w, c]);
+    let (pooled, _, _, _) = Tensor::embedding_bag(
+        &table,
+        &Tensor::from_slice(&idx).to_device(dev),
+        &Tensor::from_slice(&offsets).to_device(dev),
+        false,
+        0,
+        false,
+        Some(
+            Tensor::from_slice(&wts)
+                .to_device(dev)
+                .to_kind(features.kind()),
+        ),
+        false,
+    );
+    pooled
+        .reshape([rois.len() as i64, out as i64, out as i64, c])
+        .permute([0, 3, 1, 2])
 }
 
 #[cfg(test)]
@@ -193,6 +298,15 @@ mod tests {
             };
             let got = roi_align(&feats, &rt, &bidx, p);
             assert_eq!(got.size(), vec![5, c as i64, out, out]);
+            let bb: Vec<BBox> = rois
+                .iter()
+                .map(|r| BBox::new(r[0], r[1], r[2], r[3]))
+                .collect();
+            let gathered = roi_align_gather(&feats, &bb, &bidx, p);
+            assert!(
+                gathered.allclose(&got, 1e-5, 1e-5, false),
+                "gather and grid_sampler versions differ"
+            );
             for (i, roi) in rois.iter().enumerate() {
                 let fb: Vec<f32> = Vec::try_from(feats.get(bidx[i]).flatten(0, -1)).unwrap();
                 let want = reference(&fb, c, h, w, *roi, p);
@@ -220,7 +334,15 @@ mod tests {
         let y = roi_align(&feats, &rois, &[0], p);
         assert!((y.mean(Kind::Float).double_value(&[]) - 1.0).abs() < 1e-6);
         y.sum(Kind::Float).backward();
-        let g = feats.grad();
+        let g = feats.grad().copy();
         assert!(g.sum(Kind::Float).double_value(&[]) > 0.0);
+        let mut feats = feats;
+        feats.zero_grad();
+        let y = roi_align_gather(&feats, &[BBox::new(4.0, 4.0, 40.0, 40.0)], &[0], p);
+        y.sum(Kind::Float).backward();
+        assert!(
+            feats.grad().allclose(&g, 1e-6, 1e-6, false),
+            "same gradient from both versions"
+        );
     }
 }
