@@ -90,6 +90,8 @@ impl HogConfig {
 #[derive(Clone, Debug, Default)]
 pub struct HogScratch {
     hist: Vec<f32>,
+    gr: Vec<f32>,
+    gc: Vec<f32>,
 }
 
 /// HoG features of an interleaved image with `channels` channels (1 or 3; values on
@@ -138,52 +140,58 @@ pub fn hog_into(
     hist.resize(ncx * ncy * bins, 0.0);
     let step = 180.0 / bins as f64;
     // Unit vectors of the inner bin boundaries, for binning without atan2.
-    let bounds: Vec<(f64, f64)> = (1..bins)
+    let bounds: Vec<(f32, f32)> = (1..bins)
         .map(|k| {
             let t = (k as f64 * step).to_radians();
-            (t.cos(), t.sin())
+            (t.cos() as f32, t.sin() as f32)
         })
         .collect();
     let (wmax, hmax) = (ncx * cfg.cell, ncy * cfg.cell);
+    let stride = width * channels;
+    let rgr = &mut scratch.gr;
+    let rgc = &mut scratch.gc;
+    rgr.clear();
+    rgr.resize(wmax, 0.0);
+    rgc.clear();
+    rgc.resize(wmax, 0.0);
+    // Offset of each column's cell histogram within a row of cells.
+    let cell_off: Vec<usize> = (0..wmax).map(|x| x / cfg.cell * bins).collect();
     for y in 0..hmax {
         let cy = y / cfg.cell;
-        for x in 0..wmax {
-            // Each derivative is zero on its own axis' border only (as scikit-image).
-            let (row_in, col_in) = (y > 0 && y + 1 < height, x > 0 && x + 1 < width);
-            let (mut gr, mut gc, mut m2) = (0.0f32, 0.0f32, -1.0f32);
-            for ch in 0..channels {
-                let r = if row_in {
-                    img[((y + 1) * width + x) * channels + ch]
-                        - img[((y - 1) * width + x) * channels + ch]
-                } else {
-                    0.0
-                };
-                let c = if col_in {
-                    img[(y * width + x + 1) * channels + ch]
-                        - img[(y * width + x - 1) * channels + ch]
-                } else {
-                    0.0
-                };
-                let m = r * r + c * c;
-                if m > m2 {
-                    (gr, gc, m2) = (r, c, m);
-                }
-            }
+        let row = &img[y * stride..(y + 1) * stride];
+        // Each derivative is zero on its own axis' border only (as scikit-image).
+        let rows = (y > 0 && y + 1 < height).then(|| {
+            (
+                &img[(y - 1) * stride..y * stride],
+                &img[(y + 1) * stride..(y + 2) * stride],
+            )
+        });
+        match channels {
+            1 => gradient_row::<1>(row, rows, width, rgr, rgc),
+            3 => gradient_row::<3>(row, rows, width, rgr, rgc),
+            _ => gradient_row_dyn(row, rows, width, channels, rgr, rgc),
+        }
+        let cells = &mut hist[cy * ncx * bins..(cy + 1) * ncx * bins];
+        for ((&gr, &gc), &off) in rgr.iter().zip(rgc.iter()).zip(cell_off.iter()) {
+            let m2 = gr * gr + gc * gc;
             if m2 <= 0.0 {
                 continue;
             }
             let mag = m2.sqrt();
-            let cell = &mut hist[(cy * ncx + x / cfg.cell) * bins..][..bins];
+            let cell = &mut cells[off..off + bins];
             if cfg.orientation_interpolation {
-                let deg = (gr as f64).atan2(gc as f64).to_degrees().rem_euclid(180.0);
-                let p = deg / step - 0.5;
+                let p = fast_angle(gr, gc) * (bins as f32 / std::f32::consts::PI) - 0.5;
                 let k0 = p.floor();
-                let f = (p - k0) as f32;
-                let k0 = (k0 as isize).rem_euclid(bins as isize) as usize;
+                let f = p - k0;
+                let k0 = if k0 < 0.0 {
+                    bins - 1
+                } else {
+                    (k0 as usize).min(bins - 1)
+                };
                 cell[k0] += mag * (1.0 - f);
                 cell[(k0 + 1) % bins] += mag * f;
             } else {
-                cell[hard_bin(gr as f64, gc as f64, step, &bounds)] += mag;
+                cell[hard_bin(gr, gc, step, &bounds)] += mag;
             }
         }
     }
@@ -210,30 +218,128 @@ pub fn hog_into(
     }
 }
 
+/// Rows above and below the current one, when the row derivative is defined.
+type Neighbours<'a> = Option<(&'a [f32], &'a [f32])>;
+
+/// One row's gradient (strongest of `C` channels) into `gr`, `gc` (their length is the
+/// number of columns to compute).
+fn gradient_row<const C: usize>(
+    row: &[f32],
+    rows: Neighbours<'_>,
+    width: usize,
+    gr: &mut [f32],
+    gc: &mut [f32],
+) {
+    for x in 0..gr.len() {
+        let mut r = [0.0f32; C];
+        let mut c = [0.0f32; C];
+        if let Some((up, down)) = rows {
+            let (u, d) = (&up[x * C..x * C + C], &down[x * C..x * C + C]);
+            for ch in 0..C {
+                r[ch] = d[ch] - u[ch];
+            }
+        }
+        if x > 0 && x + 1 < width {
+            let (l, rt) = (&row[(x - 1) * C..x * C], &row[(x + 1) * C..(x + 2) * C]);
+            for ch in 0..C {
+                c[ch] = rt[ch] - l[ch];
+            }
+        }
+        let (mut br, mut bc, mut m2) = (r[0], c[0], r[0] * r[0] + c[0] * c[0]);
+        for ch in 1..C {
+            let m = r[ch] * r[ch] + c[ch] * c[ch];
+            // Branch-free select: which channel wins is unpredictable.
+            let better = m > m2;
+            br = if better { r[ch] } else { br };
+            bc = if better { c[ch] } else { bc };
+            m2 = if better { m } else { m2 };
+        }
+        gr[x] = br;
+        gc[x] = bc;
+    }
+}
+
+/// [`gradient_row`] for any channel count.
+fn gradient_row_dyn(
+    row: &[f32],
+    rows: Neighbours<'_>,
+    width: usize,
+    channels: usize,
+    gr: &mut [f32],
+    gc: &mut [f32],
+) {
+    for x in 0..gr.len() {
+        let col_in = x > 0 && x + 1 < width;
+        let (mut br, mut bc, mut m2) = (0.0f32, 0.0f32, -1.0f32);
+        for ch in 0..channels {
+            let r = rows.map_or(0.0, |(up, down)| {
+                down[x * channels + ch] - up[x * channels + ch]
+            });
+            let c = if col_in {
+                row[(x + 1) * channels + ch] - row[(x - 1) * channels + ch]
+            } else {
+                0.0
+            };
+            let m = r * r + c * c;
+            if m > m2 {
+                (br, bc, m2) = (r, c, m);
+            }
+        }
+        gr[x] = br;
+        gc[x] = bc;
+    }
+}
+
 /// The orientation bin of gradient `(row, col)`, exactly as scikit-image assigns it
-/// (`floor(deg(atan2(row, col)) mod 180 / step)`), using cross products with the bin
-/// boundaries and falling back to `atan2` only next to a boundary.
-fn hard_bin(gr: f64, gc: f64, step: f64, bounds: &[(f64, f64)]) -> usize {
+/// (`floor(deg(atan2(row, col)) mod 180 / step)`): the count of bin boundaries whose
+/// cross product with the gradient is positive, falling back to `atan2` in `f64` (what
+/// scikit-image computes) next to a boundary.
+fn hard_bin(gr: f32, gc: f32, step: f64, bounds: &[(f32, f32)]) -> usize {
     // Fold into the upper half plane: angle in [0°, 180°).
+    let flip = gr < 0.0 || (gr == 0.0 && gc < 0.0);
+    let (y, x) = if flip { (-gr, -gc) } else { (gr, gc) };
+    // Count the boundaries at or below the angle, without branches; remember how
+    // close the nearest boundary is.
+    let mut bin = 0usize;
+    let mut nearest = f32::INFINITY;
+    for &(c, s) in bounds {
+        let cross = y * c - x * s; // >= 0 when the angle >= the boundary
+        bin += usize::from(cross > 0.0);
+        nearest = nearest.min(cross.abs());
+    }
+    if nearest <= (x.abs() + y.abs()) * 1e-5 {
+        return exact_bin(gr as f64, gc as f64, step, bounds.len() + 1);
+    }
+    bin
+}
+
+/// The unsigned orientation of gradient `(row, col)` in `[0, π)`, to about 1e-5 rad
+/// (a minimax polynomial for atan on `[0, 1]`).
+fn fast_angle(gr: f32, gc: f32) -> f32 {
     let (y, x) = if gr < 0.0 || (gr == 0.0 && gc < 0.0) {
         (-gr, -gc)
     } else {
         (gr, gc)
     };
-    let scale = (x.abs() + y.abs()) * 1e-9;
-    let mut bin = 0;
-    for &(c, s) in bounds {
-        let cross = y * c - x * s; // >= 0 when the angle >= the boundary
-        if cross.abs() <= scale {
-            return exact_bin(gr, gc, step, bounds.len() + 1);
-        }
-        if cross > 0.0 {
-            bin += 1;
-        } else {
-            break;
-        }
+    let (ax, ay) = (x.abs(), y);
+    let (num, den) = if ax >= ay { (ay, ax) } else { (ax, ay) };
+    if den == 0.0 {
+        return 0.0;
     }
-    bin
+    let z = num / den;
+    let z2 = z * z;
+    let mut a = z
+        * (0.999_977_26
+            + z2 * (-0.332_623_47
+                + z2 * (0.193_543_46
+                    + z2 * (-0.116_432_87 + z2 * (0.052_653_32 + z2 * -0.011_721_2)))));
+    if ay > ax {
+        a = std::f32::consts::FRAC_PI_2 - a;
+    }
+    if x < 0.0 {
+        a = std::f32::consts::PI - a;
+    }
+    if a >= std::f32::consts::PI { 0.0 } else { a }
 }
 
 /// scikit-image's bin test, via the same `atan2` and degree conversion.
@@ -367,23 +473,38 @@ mod tests {
     #[test]
     fn hard_bins_agree_with_atan2_bins() {
         let step = 20.0;
-        let bounds: Vec<(f64, f64)> = (1..9)
+        let bounds: Vec<(f32, f32)> = (1..9)
             .map(|k| {
-                (
-                    (k as f64 * step).to_radians().cos(),
-                    (k as f64 * step).to_radians().sin(),
-                )
+                let t = (k as f64 * step).to_radians();
+                (t.cos() as f32, t.sin() as f32)
             })
             .collect();
         for gr in -12..=12 {
             for gc in -12..=12 {
-                let (gr, gc) = (gr as f64 * 0.7, gc as f64 * 1.3);
+                let (gr, gc) = (gr as f32 * 0.7, gc as f32 * 1.3);
                 assert_eq!(
                     hard_bin(gr, gc, step, &bounds),
-                    exact_bin(gr, gc, step, 9),
+                    exact_bin(gr as f64, gc as f64, step, 9),
                     "({gr}, {gc})"
                 );
             }
+        }
+    }
+
+    #[test]
+    fn fast_angle_is_close_to_atan2() {
+        for k in 0..720 {
+            let t = k as f32 * 0.5f32.to_radians() - std::f32::consts::PI;
+            let (gr, gc) = (3.0 * t.sin(), 3.0 * t.cos());
+            let want = (gr as f64)
+                .atan2(gc as f64)
+                .rem_euclid(std::f64::consts::PI);
+            let got = fast_angle(gr, gc) as f64;
+            let d = (got - want).abs();
+            assert!(
+                d.min(std::f64::consts::PI - d) < 1e-4,
+                "angle {t}: {got} vs {want}"
+            );
         }
     }
 
