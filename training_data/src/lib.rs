@@ -27,8 +27,12 @@ pub mod config;
 pub mod dataset;
 pub mod error;
 pub mod font;
+pub mod generate;
 pub mod raster;
+pub mod scene;
 pub mod sign;
+pub mod summary;
+pub mod video;
 
 pub use classes::{ClassInfo, NavAction, Sign, classes};
 pub use config::{GENERATOR_VERSION, GenConfig, VideoPlan};
@@ -37,3 +41,6 @@ pub use dataset::{
 };
 pub use error::DataError;
 pub use frugal_runtime::{BBox, ClassId};
+pub use generate::{generate, generate_or_reuse};
+pub use sign::{SignStyle, render_sign};
+pub use summary::{Summary, summary};

@@ -7,7 +7,9 @@ use std::ffi::OsString;
 
 pub mod bench;
 pub mod data;
+pub mod eval;
 pub mod run;
+pub mod train;
 
 /// frugal: fast-enough sign detection for small drones.
 ///
@@ -24,6 +26,10 @@ struct Cli {
 enum Command {
     /// Synthetic dataset generation, import, export, summary and inspection.
     Data(data::DataArgs),
+    /// Train the CNN detector (Faster-R-CNN style) on a dataset folder.
+    Train(train::TrainArgs),
+    /// Score a trained CNN detector on a dataset split (mAP, P/R/F1, per scenario).
+    Eval(eval::EvalArgs),
     /// Export a trained detector to ONNX (backbone + RPN graph, RoI-head graph).
     Export(bench::ExportArgs),
     /// Time a detector per frame through ONNX Runtime and libtorch, side by side.
@@ -45,6 +51,8 @@ where
     match cli.command {
         Command::Data(args) => data::run(args),
         Command::Run(args) => run::run(args),
+        Command::Train(args) => train::run(args),
+        Command::Eval(args) => eval::run(args),
         Command::Export(args) => bench::export(args),
         Command::Bench(args) => bench::bench(args),
     }
