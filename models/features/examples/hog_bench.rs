@@ -52,7 +52,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             bins,
             orientation_interpolation: false,
         };
-        let mut time = |cfg: &HogConfig| {
+        let time = |cfg: &HogConfig| {
             let mut scratch = HogScratch::default();
             let mut out = Vec::new();
             let reps = 200;
