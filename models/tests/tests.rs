@@ -310,3 +310,127 @@ fn interrupted_training_resumes_to_the_same_weights() {
     .to_string();
     assert!(err.contains("optimizer.safetensors"), "{err}");
 }
+
+/// The metric code against pycocotools (COCOeval, iouThrs = [0.5], 101-point
+/// interpolation) on a fixed random case: per-class AP must agree to 1e-9.
+#[test]
+fn coco101_ap_matches_pycocotools() {
+    use frugal_models::metrics::average_precision;
+    use frugal_runtime::Detection;
+    let Ok(python) = std::env::var("FRUGAL_PYTHON") else {
+        panic!("FRUGAL_PYTHON is not set (cargo sets it from .cargo/config.toml)");
+    };
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    use rand::Rng;
+    let mut images = Vec::new();
+    let mut score_id = 0u32;
+    for _ in 0..30 {
+        let mut im = ImageResult::default();
+        for _ in 0..rng.random_range(0..4) {
+            let (x, y, s) = (
+                rng.random_range(0.0..300.0f32),
+                rng.random_range(0.0..150.0f32),
+                rng.random_range(12.0..80.0f32),
+            );
+            let class = rng.random_range(0..3u16);
+            im.truth.push(Truth {
+                class,
+                bbox: BBox::from_xywh(x, y, s, s),
+            });
+            // a detection: good (IoU > 0.65), poor (IoU < 0.35), or wrong class; or none
+            let kind = rng.random_range(0..4);
+            let off = match kind {
+                0 | 3 => 0.05 * s,
+                _ => 0.6 * s,
+            };
+            let dc = if kind == 2 { (class + 1) % 3 } else { class };
+            if kind < 3 {
+                score_id += 1;
+                let score = rng.random_range(0.0..1.0f32) * 0.5 + (score_id as f32) * 1e-4;
+                im.detections.push(Detection {
+                    bbox: BBox::from_xywh(x + off, y, s, s),
+                    score,
+                    class: dc,
+                });
+            }
+        }
+        for _ in 0..rng.random_range(0..3) {
+            score_id += 1;
+            let score = rng.random_range(0.0..1.0f32) * 0.5 + (score_id as f32) * 1e-4;
+            let b = BBox::from_xywh(
+                rng.random_range(0.0..300.0),
+                rng.random_range(0.0..150.0),
+                20.0,
+                20.0,
+            );
+            if im.truth.iter().all(|t| {
+                let i = t.bbox.iou(&b);
+                !(0.3..0.7).contains(&i)
+            }) {
+                im.detections.push(Detection {
+                    bbox: b,
+                    score,
+                    class: rng.random_range(0..3),
+                });
+            }
+        }
+        images.push(im);
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (mut gts, mut dts, mut imgs) = (Vec::new(), Vec::new(), Vec::new());
+    for (i, im) in images.iter().enumerate() {
+        imgs.push(serde_json::json!({"id": i, "width": 480, "height": 270}));
+        for t in &im.truth {
+            let b = t.bbox;
+            gts.push(
+                serde_json::json!({"id": gts.len() + 1, "image_id": i, "category_id": t.class,
+                "bbox": [b.x1, b.y1, b.width(), b.height()], "area": b.area(), "iscrowd": 0}),
+            );
+        }
+        for d in &im.detections {
+            let b = d.bbox;
+            dts.push(serde_json::json!({"image_id": i, "category_id": d.class,
+                "bbox": [b.x1, b.y1, b.width(), b.height()], "score": d.score}));
+        }
+    }
+    let cats: Vec<_> = (0..3)
+        .map(|c| serde_json::json!({"id": c, "name": format!("c{c}")}))
+        .collect();
+    let gt_path = dir.path().join("gt.json");
+    let dt_path = dir.path().join("dt.json");
+    std::fs::write(
+        &gt_path,
+        serde_json::json!({"images": imgs, "annotations": gts, "categories": cats}).to_string(),
+    )
+    .unwrap();
+    std::fs::write(&dt_path, serde_json::Value::from(dts).to_string()).unwrap();
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/coco_ap.py");
+    let out = std::process::Command::new(&python)
+        .arg(&script)
+        .arg(&gt_path)
+        .arg(&dt_path)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let mut nontrivial = 0;
+    for c in 0..3u16 {
+        let want = v["ap"][c.to_string()].as_f64().unwrap();
+        let have = average_precision(&images, c, 0.5, Interpolation::Coco101).unwrap_or(-1.0);
+        assert!(
+            (want - have).abs() < 1e-9,
+            "class {c}: pycocotools {want} vs ours {have}"
+        );
+        if want > 0.05 && want < 0.95 {
+            nontrivial += 1;
+        }
+    }
+    assert!(
+        nontrivial >= 2,
+        "the case should exercise partial precision: {v}"
+    );
+}

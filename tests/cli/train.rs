@@ -1,0 +1,150 @@
+//! `frugal train` and `frugal eval` on a tiny generated dataset with a tiny model.
+use std::path::Path;
+
+/// Run the CLI in process; the error comes back as its one-line `{:#}` message.
+fn frugal(args: &[&str]) -> Result<(), String> {
+    frugal::run(std::iter::once("frugal").chain(args.iter().copied())).map_err(|e| format!("{e:#}"))
+}
+
+const TINY: &str = r#"
+[model]
+backbone = [
+  { out_channels = 8, stride = 2, convs = 1 },
+  { out_channels = 16, stride = 2, convs = 1 },
+  { out_channels = 24, stride = 2, convs = 1 },
+]
+rpn_channels = 16
+anchor_sizes = [12.0, 24.0]
+anchor_ratios = [1.0]
+roi_size = 3
+roi_hidden = 32
+pre_nms_train = 100
+post_nms_train = 30
+pre_nms_test = 100
+post_nms_test = 10
+
+[train]
+epochs = 2
+batch_size = 3
+warmup_steps = 1
+train_frames = 6
+val_frames = 4
+"#;
+
+fn p(path: &Path) -> &str {
+    path.to_str().expect("temp paths are UTF-8")
+}
+
+#[test]
+fn train_resume_and_eval_on_a_tiny_dataset() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = tmp.path().join("data");
+    let out = tmp.path().join("model");
+    let cfg = tmp.path().join("tiny.toml");
+    std::fs::write(&cfg, TINY).unwrap();
+    frugal(&[
+        "data",
+        "generate",
+        "--profile",
+        "tiny",
+        "--out",
+        p(&data),
+        "--quiet",
+    ])
+    .unwrap();
+
+    // an interrupted run (one epoch), then --resume finishes it
+    frugal(&[
+        "train",
+        "--data",
+        p(&data),
+        "--config",
+        p(&cfg),
+        "--out",
+        p(&out),
+        "--stop-after",
+        "1",
+        "--quiet",
+    ])
+    .unwrap();
+    let state: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("checkpoint/state.json")).unwrap()).unwrap();
+    assert_eq!(state["epochs_done"], 1);
+    frugal(&[
+        "train",
+        "--data",
+        p(&data),
+        "--out",
+        p(&out),
+        "--resume",
+        "--quiet",
+    ])
+    .unwrap();
+    let state: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("checkpoint/state.json")).unwrap()).unwrap();
+    assert_eq!(state["epochs_done"], 2);
+    assert_eq!(state["history"].as_array().unwrap().len(), 2);
+    for f in [
+        "best.safetensors",
+        "config.json",
+        "curves.csv",
+        "curves.png",
+        "curves.svg",
+    ] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+
+    let ev = tmp.path().join("eval");
+    frugal(&[
+        "eval",
+        "--model",
+        p(&out),
+        "--data",
+        p(&data),
+        "--split",
+        "test",
+        "--out",
+        p(&ev),
+        "--quiet",
+    ])
+    .unwrap();
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(ev.join("report.json")).unwrap()).unwrap();
+    let map = report["overall"]["map"].as_f64().unwrap();
+    assert!((0.0..=1.0).contains(&map));
+    assert_eq!(report["classes"].as_array().unwrap().len(), 10);
+    assert_eq!(report["overall"]["confusion"].as_array().unwrap().len(), 11);
+    // the tiny dataset has every clutter × light combination in its test split
+    assert_eq!(report["scenarios"].as_object().unwrap().len(), 6);
+    assert!(
+        std::fs::read_to_string(ev.join("report.txt"))
+            .unwrap()
+            .contains("mAP@0.5")
+    );
+}
+
+#[test]
+fn bad_inputs_give_errors_naming_the_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cfg = tmp.path().join("typo.toml");
+    std::fs::write(&cfg, "[train]\nepochz = 2\n").unwrap();
+    let err = frugal(&[
+        "train",
+        "--data",
+        p(tmp.path()),
+        "--config",
+        p(&cfg),
+        "--out",
+        p(&tmp.path().join("o")),
+    ])
+    .unwrap_err();
+    let msg = err;
+    assert!(msg.contains("typo.toml") && msg.contains("epochz"), "{msg}");
+
+    let model = tmp.path().join("model");
+    std::fs::create_dir_all(&model).unwrap();
+    std::fs::write(model.join("config.json"), "{}").unwrap();
+    std::fs::write(model.join("best.safetensors"), b"garbage").unwrap();
+    let msg = frugal(&["eval", "--model", p(&model), "--data", p(tmp.path())]).unwrap_err();
+    assert!(msg.contains("best.safetensors"), "{msg}");
+}
