@@ -1,0 +1,823 @@
+//! Replay evaluation of the paper's strategies on held-out videos
+//! (`frugal policy eval`).
+//!
+//! Every strategy runs the runtime's [`Controller`] over a bundle built with the
+//! runtime's writer, so what is evaluated is what flies:
+//!
+//! 1. [`Strategy::Static`]: the most accurate variant (by F1 on the training videos)
+//!    on every frame — a constant policy table, `N = M = 1`;
+//! 2. [`Strategy::RandomTracker`]: a random variant at every policy query, tracker in
+//!    between (paper thresholds);
+//! 3. [`Strategy::Mdp`]: the trained policy, a detection every frame (`N = M = 1`);
+//! 4. [`Strategy::StaticTracker`]: the static variant with the tracker;
+//! 5. [`Strategy::MdpTracker`]: the trained policy with the tracker;
+//! 6. [`Strategy::Oracle`]: per frame, the cheapest variant whose reported detections
+//!    are all correct (every sign found at IoU ≥ 0.5, no false alarm); when none is,
+//!    the static variant. It is never slower than static and never less accurate.
+//!
+//! Detections come from the replay log; the KLT tracker runs for real on the real
+//! frames between detections, one tracker per reported detection (up to
+//! [`EvalConfig::max_tracks`]), and the controller is given the worst IoU and quality
+//! among them. A detection is *reported* (scored and tracked) when its score reaches
+//! its family's `T_c`. Compute time per frame is the variant's measured latency plus,
+//! for the tracker, the medians measured in the same run (pyramid build per frame,
+//! track and init per object), so the replay's decisions are deterministic.
+
+use crate::error::{PolicyError, Result};
+use crate::replay::{Frames, ReplayLog, VideoLog};
+use crate::train::TrainedPolicy;
+use frugal_data::{Clutter, Light, Split};
+use frugal_models::metrics::{ImageResult, Interpolation, Truth, evaluate, image_counts};
+use frugal_runtime::bundle::{BUCKET_COUNT, Thresholds};
+use frugal_runtime::track::{Pyramid, Tracker, TrackerParams, rgb_to_gray};
+use frugal_runtime::{BBox, Bundle, Controller, Decision, Detection, Observation, TrackStatus};
+use rand::{Rng, SeedableRng};
+use serde::{Deserialize, Serialize};
+use std::time::Instant;
+
+/// Points per KLT tracker.
+pub const TRACK_POINTS: usize = 48;
+
+/// A strategy of the paper's Fig. PerfMDP, plus the oracle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Strategy {
+    /// 1. The most accurate variant on every frame.
+    Static,
+    /// 2. A random variant at each policy query, with the tracker.
+    RandomTracker,
+    /// 3. The MDP policy, detecting every frame.
+    Mdp,
+    /// 4. The static variant with the tracker.
+    StaticTracker,
+    /// 5. The MDP policy with the tracker.
+    MdpTracker,
+    /// 6. The per-frame oracle.
+    Oracle,
+}
+
+impl Strategy {
+    /// All, in the paper's order, the oracle last.
+    pub const ALL: [Strategy; 6] = [
+        Strategy::Static,
+        Strategy::RandomTracker,
+        Strategy::Mdp,
+        Strategy::StaticTracker,
+        Strategy::MdpTracker,
+        Strategy::Oracle,
+    ];
+
+    /// Short name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Strategy::Static => "static",
+            Strategy::RandomTracker => "random+tracker",
+            Strategy::Mdp => "mdp",
+            Strategy::StaticTracker => "static+tracker",
+            Strategy::MdpTracker => "mdp+tracker",
+            Strategy::Oracle => "oracle",
+        }
+    }
+
+    /// Whether the KLT tracker runs between detections.
+    pub fn uses_tracker(self) -> bool {
+        matches!(
+            self,
+            Strategy::RandomTracker | Strategy::StaticTracker | Strategy::MdpTracker
+        )
+    }
+}
+
+/// A test scenario (the paper's low clutter, high clutter, low light; plus medium).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Scenario {
+    /// Low clutter, normal light.
+    LowClutter,
+    /// Medium clutter, normal light.
+    MediumClutter,
+    /// High clutter, normal light.
+    HighClutter,
+    /// Low light, any clutter.
+    LowLight,
+}
+
+impl Scenario {
+    /// All scenarios.
+    pub const ALL: [Scenario; 4] = [
+        Scenario::LowClutter,
+        Scenario::MediumClutter,
+        Scenario::HighClutter,
+        Scenario::LowLight,
+    ];
+
+    /// The scenario of a video.
+    pub fn of(video: &VideoLog) -> Scenario {
+        match (video.light, video.clutter) {
+            (Light::Low, _) => Scenario::LowLight,
+            (Light::Normal, Clutter::Low) => Scenario::LowClutter,
+            (Light::Normal, Clutter::Medium) => Scenario::MediumClutter,
+            (Light::Normal, Clutter::High) => Scenario::HighClutter,
+        }
+    }
+
+    /// Short name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Scenario::LowClutter => "low-clutter",
+            Scenario::MediumClutter => "medium-clutter",
+            Scenario::HighClutter => "high-clutter",
+            Scenario::LowLight => "low-light",
+        }
+    }
+}
+
+/// Evaluation settings.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EvalConfig {
+    /// Thresholds of the tracker strategies (paper: θ_th 0.5, N 100, M 10).
+    pub iou_threshold: f32,
+    /// `T_m`.
+    pub min_track_quality: f32,
+    /// `N`.
+    pub mdp_period: u32,
+    /// `M`.
+    pub reinit_period: u32,
+    /// IoU for a correct detection (paper 0.5).
+    pub eval_iou: f32,
+    /// Most objects tracked at once.
+    pub max_tracks: usize,
+    /// Seed of the random strategy.
+    pub seed: u64,
+}
+
+impl Default for EvalConfig {
+    fn default() -> Self {
+        let t = Thresholds::PAPER;
+        Self {
+            iou_threshold: t.iou_threshold,
+            min_track_quality: t.min_track_quality,
+            mdp_period: t.mdp_period,
+            reinit_period: t.reinit_period,
+            eval_iou: 0.5,
+            max_tracks: 4,
+            seed: 7,
+        }
+    }
+}
+
+impl EvalConfig {
+    /// The tracker strategies' thresholds.
+    pub fn thresholds(&self) -> Thresholds {
+        Thresholds {
+            iou_threshold: self.iou_threshold,
+            min_track_quality: self.min_track_quality,
+            mdp_period: self.mdp_period,
+            reinit_period: self.reinit_period,
+        }
+    }
+
+    /// The no-tracker strategies' thresholds: the policy is asked and a detection runs
+    /// on every frame.
+    pub fn every_frame(&self) -> Thresholds {
+        Thresholds {
+            mdp_period: 1,
+            reinit_period: 1,
+            ..self.thresholds()
+        }
+    }
+}
+
+/// What happened on one frame.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FrameTrace {
+    /// Frame index.
+    pub frame: u32,
+    /// The variant run, `None` when the frame was tracked.
+    pub detect: Option<u16>,
+    /// Why the detection ran (the controller's trigger), if it did.
+    pub reason: Option<String>,
+    /// The controller's state after the decision: `bucket · V + variant`.
+    pub state: usize,
+    /// Objects tracked into this frame.
+    pub tracked: usize,
+    /// Trackers started on this frame.
+    pub inits: usize,
+    /// Whether a pyramid was needed (tracking or init).
+    pub pyramid: bool,
+    /// True positives, false positives, false negatives of what was reported.
+    pub counts: (usize, usize, usize),
+    /// Compute time charged to the frame, ms.
+    pub time_ms: f64,
+}
+
+/// One strategy on one video.
+#[derive(Clone, Debug)]
+pub struct VideoRun {
+    /// The video id.
+    pub video: u32,
+    /// Per-frame trace.
+    pub frames: Vec<FrameTrace>,
+    /// Reported detections and truth per frame (for the metrics).
+    pub images: Vec<ImageResult>,
+}
+
+/// Tracker cost medians measured in the run.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TrackerCost {
+    /// Gray conversion + pyramid build, per frame, ms.
+    pub pyramid_ms: f64,
+    /// Tracking one object one frame, ms.
+    pub track_ms: f64,
+    /// Starting one tracker, ms.
+    pub init_ms: f64,
+    /// Samples behind each median (pyramid, track, init).
+    pub samples: (usize, usize, usize),
+}
+
+#[derive(Default)]
+struct Timings {
+    pyramid: Vec<f64>,
+    track: Vec<f64>,
+    init: Vec<f64>,
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    let m = v.len() / 2;
+    if v.len() % 2 == 1 {
+        v[m]
+    } else {
+        0.5 * (v[m - 1] + v[m])
+    }
+}
+
+/// Reported detections of variant `v` on frame `f` of `video`: score ≥ its `T_c`.
+fn reported(log: &ReplayLog, video: &VideoLog, f: usize, v: usize) -> Vec<Detection> {
+    let t_c = log.buckets(v).t_c;
+    video.frames[f].detections[v]
+        .iter()
+        .filter(|d| d.score >= t_c)
+        .map(|d| d.detection())
+        .collect()
+}
+
+fn truth(video: &VideoLog, f: usize) -> Vec<Truth> {
+    video.frames[f]
+        .truth
+        .iter()
+        .map(|d| Truth {
+            class: d.class,
+            bbox: d.bbox(),
+        })
+        .collect()
+}
+
+/// Per-frame correctness of a variant: every sign found, no false alarm.
+pub fn correct(log: &ReplayLog, video: &VideoLog, f: usize, v: usize, iou: f32) -> bool {
+    let im = ImageResult {
+        detections: reported(log, video, f, v),
+        truth: truth(video, f),
+    };
+    let (_, fp, fneg) = image_counts(&im, iou, f32::NEG_INFINITY);
+    fp == 0 && fneg == 0
+}
+
+/// The most accurate variant (F1 detecting every frame) on the log's training videos
+/// (all videos if there are none); ties go to the cheaper.
+pub fn most_accurate(log: &ReplayLog, iou: f32) -> usize {
+    let train: Vec<&VideoLog> = if log.split(Split::Train).next().is_some() {
+        log.split(Split::Train).collect()
+    } else {
+        log.videos.iter().collect()
+    };
+    let mut best = (0, f64::NEG_INFINITY);
+    for v in 0..log.variants.len() {
+        let images: Vec<ImageResult> = train
+            .iter()
+            .flat_map(|video| {
+                (0..video.frames.len()).map(move |f| ImageResult {
+                    detections: reported(log, video, f, v),
+                    truth: truth(video, f),
+                })
+            })
+            .collect();
+        let f1 = evaluate(
+            &images,
+            log.classes.max(1),
+            iou,
+            f32::NEG_INFINITY,
+            Interpolation::AllPoint,
+        )
+        .f1;
+        if f1 > best.1 + 1e-12 {
+            best = (v, f1);
+        }
+    }
+    best.0
+}
+
+/// A bundle whose policy always answers `variant`.
+pub fn constant_bundle(log: &ReplayLog, variant: u16, thresholds: Thresholds) -> Result<Vec<u8>> {
+    let actions = vec![variant; BUCKET_COUNT * log.variants.len()];
+    crate::bundle::bundle_bytes(
+        &log.families,
+        &log.variants,
+        &[],
+        thresholds,
+        variant,
+        &actions,
+        &[("strategy".into(), format!("constant {variant}"))],
+    )
+}
+
+struct Track {
+    tracker: Tracker<TRACK_POINTS>,
+    init: BBox,
+    det: Detection,
+}
+
+fn tracker_err(
+    video: u32,
+    frame: u32,
+) -> impl Fn(frugal_runtime::track::TrackError) -> PolicyError {
+    move |e| PolicyError::Tracker {
+        video,
+        frame,
+        message: e.to_string(),
+    }
+}
+
+/// Run one strategy over one video with the controller over `bundle`. `frames` is
+/// needed when `tracker` is set; `random` overrides the variant at every policy query.
+#[allow(clippy::too_many_arguments)]
+fn run_controlled(
+    log: &ReplayLog,
+    video: &VideoLog,
+    bundle: &[u8],
+    tracker: Option<&dyn Frames>,
+    random: Option<u64>,
+    cfg: &EvalConfig,
+    timings: &mut Timings,
+) -> Result<VideoRun> {
+    let bundle = Bundle::parse(bundle).map_err(|e| PolicyError::Bundle {
+        path: "<memory>".into(),
+        message: e.to_string(),
+    })?;
+    let v_n = log.variants.len();
+    let mut ctl = Controller::new(bundle);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(random.unwrap_or(0) ^ u64::from(video.id));
+    let mut random_variant: u16 = 0;
+    let (w, h) = (video.width as usize, video.height as usize);
+    let params = TrackerParams::DEFAULT;
+    let levels = params.lk.levels;
+    let need = Pyramid::required_len(w, h, levels).unwrap_or(0);
+    let (mut prev_buf, mut cur_buf, mut gray_buf) = if tracker.is_some() {
+        (vec![0u8; need], vec![0u8; need], vec![0u8; w * h])
+    } else {
+        (Vec::new(), Vec::new(), Vec::new())
+    };
+    let mut have_prev = false;
+    let mut tracks: Vec<Track> = Vec::new();
+    let mut score: Option<f32> = None;
+    let mut out = VideoRun {
+        video: video.id,
+        frames: Vec::with_capacity(video.frames.len()),
+        images: Vec::with_capacity(video.frames.len()),
+    };
+    for (fi, f) in video.frames.iter().enumerate() {
+        let err = tracker_err(video.id, f.index);
+        let mut trace = FrameTrace {
+            frame: f.index,
+            detect: None,
+            reason: None,
+            state: 0,
+            tracked: 0,
+            inits: 0,
+            pyramid: false,
+            counts: (0, 0, 0),
+            time_ms: 0.0,
+        };
+        let mut status: Option<TrackStatus> = None;
+        if let Some(frames) = tracker {
+            let img = frames.load(video.id, f.index)?;
+            if img.width as usize != w || img.height as usize != h {
+                return Err(PolicyError::Tracker {
+                    video: video.id,
+                    frame: f.index,
+                    message: format!(
+                        "frame is {}x{}, the log says {w}x{h}",
+                        img.width, img.height
+                    ),
+                });
+            }
+            let t0 = Instant::now();
+            let gray = rgb_to_gray(&img.view(), &mut gray_buf).map_err(&err)?;
+            Pyramid::new(&mut cur_buf, w, h, levels)
+                .and_then(|mut p| p.build(&gray))
+                .map_err(&err)?;
+            timings.pyramid.push(t0.elapsed().as_secs_f64() * 1e3);
+            if have_prev && !tracks.is_empty() {
+                let prev = Pyramid::new(&mut prev_buf, w, h, levels).map_err(&err)?;
+                let cur = Pyramid::new(&mut cur_buf, w, h, levels).map_err(&err)?;
+                let (mut iou, mut quality, mut bbox) = (f32::INFINITY, f32::INFINITY, None);
+                for t in &mut tracks {
+                    let t0 = Instant::now();
+                    let r = t.tracker.track(&prev, &cur);
+                    timings.track.push(t0.elapsed().as_secs_f64() * 1e3);
+                    trace.tracked += 1;
+                    match r {
+                        Ok(o) => {
+                            let i = o.bbox.iou(&t.init);
+                            if i < iou {
+                                iou = i;
+                                bbox = Some(o.bbox);
+                            }
+                            quality = quality.min(o.quality);
+                        }
+                        Err(_) => quality = 0.0,
+                    }
+                }
+                trace.pyramid = true;
+                tracks.retain(|t| t.tracker.is_active());
+                status = bbox.map(|bbox| TrackStatus { bbox, iou, quality });
+            }
+        }
+        let decision = ctl.step(&Observation {
+            frame: f.index,
+            score,
+            track: status,
+        });
+        let shown: Vec<Detection> = match decision {
+            Decision::Detect { variant, reason } => {
+                let variant = match random {
+                    Some(_) => {
+                        if reason != frugal_runtime::Trigger::Reinit {
+                            random_variant = rng.random_range(0..v_n) as u16;
+                        }
+                        random_variant
+                    }
+                    None => variant,
+                };
+                let v = usize::from(variant);
+                trace.detect = Some(variant);
+                trace.reason = Some(format!("{reason:?}"));
+                score = video.frames[fi].best_score(v);
+                let dets = reported(log, video, fi, v);
+                if tracker.is_some() {
+                    tracks.clear();
+                    let cur = Pyramid::new(&mut cur_buf, w, h, levels).map_err(&err)?;
+                    for d in dets.iter().take(cfg.max_tracks) {
+                        let mut t = Track {
+                            tracker: Tracker::new(params),
+                            init: d.bbox,
+                            det: *d,
+                        };
+                        let t0 = Instant::now();
+                        let ok = t.tracker.init(&cur, d.bbox).is_ok();
+                        timings.init.push(t0.elapsed().as_secs_f64() * 1e3);
+                        trace.inits += 1;
+                        trace.pyramid = true;
+                        if ok {
+                            tracks.push(t);
+                        }
+                    }
+                }
+                dets
+            }
+            Decision::Track => tracks
+                .iter()
+                .map(|t| Detection {
+                    bbox: t.tracker.bbox(),
+                    ..t.det
+                })
+                .collect(),
+        };
+        let shown_variant = trace.detect.map_or(ctl.current_variant(), |v| v);
+        let bucket = log
+            .buckets(usize::from(shown_variant))
+            .to_runtime()
+            .bucket(score);
+        trace.state = bucket.index() * v_n + usize::from(shown_variant);
+        let im = ImageResult {
+            detections: shown,
+            truth: truth(video, fi),
+        };
+        trace.counts = image_counts(&im, cfg.eval_iou, f32::NEG_INFINITY);
+        out.images.push(im);
+        out.frames.push(trace);
+        if tracker.is_some() {
+            std::mem::swap(&mut prev_buf, &mut cur_buf);
+            have_prev = true;
+        }
+    }
+    Ok(out)
+}
+
+fn run_oracle(log: &ReplayLog, video: &VideoLog, fallback: usize, cfg: &EvalConfig) -> VideoRun {
+    let v_n = log.variants.len();
+    let mut out = VideoRun {
+        video: video.id,
+        frames: Vec::new(),
+        images: Vec::new(),
+    };
+    for (fi, f) in video.frames.iter().enumerate() {
+        let v = (0..v_n)
+            .find(|&v| correct(log, video, fi, v, cfg.eval_iou))
+            .unwrap_or(fallback);
+        let im = ImageResult {
+            detections: reported(log, video, fi, v),
+            truth: truth(video, fi),
+        };
+        let bucket = log.buckets(v).to_runtime().bucket(f.best_score(v));
+        out.frames.push(FrameTrace {
+            frame: f.index,
+            detect: Some(v as u16),
+            reason: Some("Oracle".into()),
+            state: bucket.index() * v_n + v,
+            tracked: 0,
+            inits: 0,
+            pyramid: false,
+            counts: image_counts(&im, cfg.eval_iou, f32::NEG_INFINITY),
+            time_ms: log.variants[v].latency_ms,
+        });
+        out.images.push(im);
+    }
+    out
+}
+
+/// Scores of one strategy on one scenario.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Score {
+    /// Scenario name (`all` for every test video).
+    pub scenario: String,
+    /// Strategy name.
+    pub strategy: String,
+    /// Videos.
+    pub videos: usize,
+    /// Frames.
+    pub frames: usize,
+    /// F1 at the evaluation IoU.
+    pub f1: f64,
+    /// Precision.
+    pub precision: f64,
+    /// Recall.
+    pub recall: f64,
+    /// Mean IoU of matched detections.
+    pub mean_iou: f64,
+    /// Total compute time, ms.
+    pub total_ms: f64,
+    /// Per frame, ms.
+    pub ms_per_frame: f64,
+    /// Frames per second that compute time allows.
+    pub fps: f64,
+    /// Static's total time over this one's.
+    pub speedup_vs_static: f64,
+    /// Static's F1 minus this one's (absolute).
+    pub f1_loss_vs_static: f64,
+    /// Detections run.
+    pub detections: usize,
+}
+
+/// Everything `policy eval` measures.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct EvalReport {
+    /// The settings.
+    pub config: EvalConfig,
+    /// The static strategy's variant.
+    pub static_variant: String,
+    /// Tracker cost medians.
+    pub tracker_cost: TrackerCost,
+    /// Per scenario and strategy.
+    pub scores: Vec<Score>,
+    /// Test videos used.
+    pub videos: Vec<u32>,
+}
+
+/// All strategies' runs over `videos`, keyed by strategy (same order as
+/// [`Strategy::ALL`]), with frame times filled in.
+pub struct Runs {
+    /// `(strategy, runs per video)`.
+    pub runs: Vec<(Strategy, Vec<VideoRun>)>,
+    /// Tracker cost medians.
+    pub cost: TrackerCost,
+    /// The static variant.
+    pub static_variant: usize,
+}
+
+/// The bundle of each controlled strategy (the oracle has none).
+pub fn strategy_bundle(
+    log: &ReplayLog,
+    policy: &TrainedPolicy,
+    strategy: Strategy,
+    static_variant: usize,
+    cfg: &EvalConfig,
+) -> Result<Option<Vec<u8>>> {
+    let th = if strategy.uses_tracker() {
+        cfg.thresholds()
+    } else {
+        cfg.every_frame()
+    };
+    Ok(match strategy {
+        Strategy::Static | Strategy::StaticTracker => {
+            Some(constant_bundle(log, static_variant as u16, th)?)
+        }
+        Strategy::RandomTracker => Some(constant_bundle(log, 0, th)?),
+        Strategy::Mdp | Strategy::MdpTracker => Some(crate::bundle::policy_bundle(policy, th)?),
+        Strategy::Oracle => None,
+    })
+}
+
+/// Run `strategy` over `videos` with a given bundle (as built by [`strategy_bundle`],
+/// or read back from disk). Frame times are left at the detection latency; tracker
+/// costs are added by [`run_all`].
+pub fn run_with_bundle(
+    log: &ReplayLog,
+    videos: &[&VideoLog],
+    strategy: Strategy,
+    bundle: &[u8],
+    frames: Option<&dyn Frames>,
+    cfg: &EvalConfig,
+) -> Result<Vec<VideoRun>> {
+    let mut timings = Timings::default();
+    run_timed(log, videos, strategy, bundle, frames, cfg, &mut timings)
+}
+
+fn run_timed(
+    log: &ReplayLog,
+    videos: &[&VideoLog],
+    strategy: Strategy,
+    bundle: &[u8],
+    frames: Option<&dyn Frames>,
+    cfg: &EvalConfig,
+    timings: &mut Timings,
+) -> Result<Vec<VideoRun>> {
+    let tracker = if strategy.uses_tracker() {
+        Some(frames.ok_or_else(|| {
+            PolicyError::invalid(
+                &log.dataset,
+                "frames",
+                format!("strategy {} needs the video frames", strategy.name()),
+            )
+        })?)
+    } else {
+        None
+    };
+    let random = (strategy == Strategy::RandomTracker).then_some(cfg.seed);
+    videos
+        .iter()
+        .map(|video| {
+            let mut run = run_controlled(log, video, bundle, tracker, random, cfg, timings)?;
+            for t in &mut run.frames {
+                t.time_ms = t
+                    .detect
+                    .map_or(0.0, |v| log.variants[usize::from(v)].latency_ms);
+            }
+            Ok(run)
+        })
+        .collect()
+}
+
+/// Run every strategy over `videos`, measure the tracker's medians and charge them.
+pub fn run_all(
+    log: &ReplayLog,
+    policy: &TrainedPolicy,
+    videos: &[&VideoLog],
+    frames: Option<&dyn Frames>,
+    cfg: &EvalConfig,
+    strategies: &[Strategy],
+) -> Result<Runs> {
+    let static_variant = most_accurate(log, cfg.eval_iou);
+    let mut timings = Timings::default();
+    let mut runs = Vec::new();
+    for &s in strategies {
+        let r = match strategy_bundle(log, policy, s, static_variant, cfg)? {
+            Some(bundle) => run_timed(log, videos, s, &bundle, frames, cfg, &mut timings)?,
+            None => videos
+                .iter()
+                .map(|v| run_oracle(log, v, static_variant, cfg))
+                .collect(),
+        };
+        runs.push((s, r));
+    }
+    let cost = TrackerCost {
+        samples: (
+            timings.pyramid.len(),
+            timings.track.len(),
+            timings.init.len(),
+        ),
+        pyramid_ms: median(&mut timings.pyramid),
+        track_ms: median(&mut timings.track),
+        init_ms: median(&mut timings.init),
+    };
+    for (_, rs) in &mut runs {
+        for r in rs {
+            for t in &mut r.frames {
+                t.time_ms += if t.pyramid { cost.pyramid_ms } else { 0.0 }
+                    + t.tracked as f64 * cost.track_ms
+                    + t.inits as f64 * cost.init_ms;
+            }
+        }
+    }
+    Ok(Runs {
+        runs,
+        cost,
+        static_variant,
+    })
+}
+
+/// Score a set of runs (videos already filtered to one scenario).
+fn score(
+    log: &ReplayLog,
+    scenario: &str,
+    strategy: Strategy,
+    runs: &[&VideoRun],
+    cfg: &EvalConfig,
+) -> Score {
+    let images: Vec<ImageResult> = runs.iter().flat_map(|r| r.images.iter().cloned()).collect();
+    let s = evaluate(
+        &images,
+        log.classes.max(1),
+        cfg.eval_iou,
+        f32::NEG_INFINITY,
+        Interpolation::AllPoint,
+    );
+    let frames: usize = runs.iter().map(|r| r.frames.len()).sum();
+    let total: f64 = runs.iter().flat_map(|r| &r.frames).map(|t| t.time_ms).sum();
+    let per = if frames > 0 {
+        total / frames as f64
+    } else {
+        0.0
+    };
+    Score {
+        scenario: scenario.into(),
+        strategy: strategy.name().into(),
+        videos: runs.len(),
+        frames,
+        f1: s.f1,
+        precision: s.precision,
+        recall: s.recall,
+        mean_iou: s.mean_iou,
+        total_ms: total,
+        ms_per_frame: per,
+        fps: if per > 0.0 { 1e3 / per } else { f64::INFINITY },
+        speedup_vs_static: 1.0,
+        f1_loss_vs_static: 0.0,
+        detections: runs
+            .iter()
+            .flat_map(|r| &r.frames)
+            .filter(|t| t.detect.is_some())
+            .count(),
+    }
+}
+
+/// Scores per scenario (and `all`) and strategy, with speed-up and F1 loss against
+/// the static strategy of the same scenario.
+pub fn scores(log: &ReplayLog, videos: &[&VideoLog], runs: &Runs, cfg: &EvalConfig) -> Vec<Score> {
+    let mut groups: Vec<(String, Vec<u32>)> = Scenario::ALL
+        .iter()
+        .map(|s| {
+            (
+                s.name().to_owned(),
+                videos
+                    .iter()
+                    .filter(|v| Scenario::of(v) == *s)
+                    .map(|v| v.id)
+                    .collect::<Vec<_>>(),
+            )
+        })
+        .filter(|(_, ids)| !ids.is_empty())
+        .collect();
+    groups.push(("all".into(), videos.iter().map(|v| v.id).collect()));
+    let mut out = Vec::new();
+    for (name, ids) in &groups {
+        let mut group: Vec<Score> = runs
+            .runs
+            .iter()
+            .map(|(s, rs)| {
+                let sel: Vec<&VideoRun> = rs.iter().filter(|r| ids.contains(&r.video)).collect();
+                score(log, name, *s, &sel, cfg)
+            })
+            .collect();
+        if let Some(st) = group
+            .iter()
+            .find(|s| s.strategy == Strategy::Static.name())
+            .cloned()
+        {
+            for s in &mut group {
+                s.speedup_vs_static = if s.total_ms > 0.0 {
+                    st.total_ms / s.total_ms
+                } else {
+                    f64::INFINITY
+                };
+                s.f1_loss_vs_static = st.f1 - s.f1;
+            }
+        }
+        out.extend(group);
+    }
+    out
+}
