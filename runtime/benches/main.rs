@@ -1,1 +1,106 @@
-fn main() {}
+//! Criterion benchmarks of the per-frame path.
+//!
+//! - `controller/step`: one decision of [`Controller::step`] (budget ≤ 100 ns median);
+//! - `pyramid/build_480x270_3`: building a 3-level pyramid of a 480×270 frame;
+//! - `tracker/frame_480x270_64pts`: one tracked frame — next pyramid build + LK
+//!   forward and backward for ≤ 64 points + median-flow box update (budget ≤ 1 ms);
+//! - `tracker/init_corners`: Shi-Tomasi corner selection in the sign's box.
+//!
+//! `cargo bench -p frugal-runtime --bench main`
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use frugal_runtime::bundle::write::{BundleWriter, FamilySpec, VariantSpec};
+use frugal_runtime::bundle::{ScoreBuckets, Thresholds};
+use frugal_runtime::synth::{ClipSpec, make_clip};
+use frugal_runtime::track::{GrayImage, Pyramid, Tracker, TrackerParams};
+use frugal_runtime::{BBox, Bundle, Controller, Observation, TrackStatus};
+use std::hint::black_box;
+
+fn bundle_bytes() -> Vec<u8> {
+    let mut w = BundleWriter::new(Thresholds::PAPER)
+        .family(FamilySpec {
+            name: "cnn".into(),
+            buckets: ScoreBuckets {
+                c_opt: 0.9,
+                c_ge: 0.6,
+                c_ua: 0.3,
+                t_c: 0.5,
+            },
+        })
+        .family(FamilySpec {
+            name: "hog".into(),
+            buckets: ScoreBuckets::PAPER_SVM,
+        });
+    for v in 0..8u16 {
+        w = w.variant(VariantSpec::new(
+            &format!("v{v}"),
+            v % 2,
+            1.0 + f32::from(v),
+            5.0 * f32::from(v + 1),
+        ));
+    }
+    let actions = (0..4 * 8).map(|i| ((i * 5 + 3) % 8) as u16).collect();
+    w.policy(0, actions).finish().expect("valid bundle")
+}
+
+fn controller(c: &mut Criterion) {
+    let bytes = bundle_bytes();
+    let bundle = Bundle::parse(&bytes).expect("parse");
+    let mut ctl = Controller::new(bundle);
+    // A repeating pattern of observations that exercises every branch.
+    let obs: Vec<Observation> = (0..1000u32)
+        .map(|f| Observation {
+            frame: f,
+            score: Some(((f * 37) % 100) as f32 / 50.0 - 0.8),
+            track: (f % 13 != 0).then_some(TrackStatus {
+                bbox: BBox::new(10.0, 10.0, 50.0, 50.0),
+                iou: ((f * 7) % 10) as f32 / 10.0 + 0.05,
+                quality: 0.9,
+            }),
+        })
+        .collect();
+    let mut i = 0usize;
+    c.bench_function("controller/step", |b| {
+        b.iter(|| {
+            i = (i + 1) % obs.len();
+            black_box(ctl.step(black_box(&obs[i])))
+        })
+    });
+}
+
+fn tracker(c: &mut Criterion) {
+    let clip = make_clip(&ClipSpec::standard(5, 30));
+    let (w, h) = (clip.width, clip.height);
+    let prm = TrackerParams::DEFAULT;
+    let need = Pyramid::required_len(w, h, prm.lk.levels).expect("size");
+    let (mut wa, mut wb) = (vec![0u8; need], vec![0u8; need]);
+    let mut prev = Pyramid::new(&mut wa, w, h, prm.lk.levels).expect("ws");
+    let mut next = Pyramid::new(&mut wb, w, h, prm.lk.levels).expect("ws");
+    let gray = |f: usize| GrayImage::new(&clip.frames[f], w, h, w).expect("frame");
+    c.bench_function("pyramid/build_480x270_3", |b| {
+        b.iter(|| next.build(black_box(&gray(1))).expect("build"))
+    });
+
+    // The first frame whose sign box holds the full 64 corners.
+    let mut t = Tracker::<64>::new(prm);
+    let f = (0..clip.frames.len() - 1)
+        .find(|&f| {
+            prev.build(&gray(f)).expect("build");
+            t.init(&prev, clip.boxes[f]) == Ok(64)
+        })
+        .expect("a frame with 64 corners");
+    let pts = t.points().to_vec();
+    c.bench_function("tracker/init_corners", |b| {
+        b.iter(|| t.init(&prev, black_box(clip.boxes[f])).expect("init"))
+    });
+    c.bench_function("tracker/frame_480x270_64pts", |b| {
+        b.iter(|| {
+            t.init_with_points(clip.boxes[f], &pts).expect("points");
+            next.build(&gray(f + 1)).expect("build");
+            black_box(t.track(&prev, &next))
+        })
+    });
+}
+
+criterion_group!(benches, controller, tracker);
+criterion_main!(benches);

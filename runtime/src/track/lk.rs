@@ -119,32 +119,31 @@ impl Template {
             inv: [0.0; 3],
         };
         let (mut a11, mut a12, mut a22) = (0f32, 0f32, 0f32);
-        let rows = patch.chunks_exact(side);
-        let mut k = 0;
-        let mut prev_rows = rows.clone();
-        let (mut up, mut mid) = (prev_rows.next()?, prev_rows.next()?);
-        for down in prev_rows {
-            for x in 1..=win {
-                let g = |row: &[f32], dx: usize| row.get(x + dx - 1).copied().unwrap_or(0.0);
-                let gx = (3.0 * (g(up, 2) - g(up, 0))
-                    + 10.0 * (g(mid, 2) - g(mid, 0))
-                    + 3.0 * (g(down, 2) - g(down, 0)))
-                    / 32.0;
-                let gy = (3.0 * (g(down, 0) - g(up, 0))
-                    + 10.0 * (g(down, 1) - g(up, 1))
-                    + 3.0 * (g(down, 2) - g(up, 2)))
-                    / 32.0;
-                if let (Some(ti), Some(tx), Some(ty)) =
-                    (t.i.get_mut(k), t.ix.get_mut(k), t.iy.get_mut(k))
-                {
-                    *ti = g(mid, 1);
-                    *tx = gx;
-                    *ty = gy;
-                }
+        let mut rows = patch.get(..side * side)?.chunks_exact(side);
+        let (mut up, mut mid) = (rows.next()?, rows.next()?);
+        let mut outs =
+            t.i.chunks_exact_mut(win)
+                .zip(t.ix.chunks_exact_mut(win))
+                .zip(t.iy.chunks_exact_mut(win));
+        for down in rows {
+            let ((oi, ox), oy) = outs.next()?;
+            let cols = up
+                .windows(3)
+                .zip(mid.windows(3))
+                .zip(down.windows(3))
+                .zip(oi.iter_mut().zip(ox.iter_mut()).zip(oy.iter_mut()));
+            for (((u, m), d), ((ti, tx), ty)) in cols {
+                let (&[u0, u1, u2], &[m0, m1, m2], &[d0, d1, d2]) = (u, m, d) else {
+                    continue;
+                };
+                let gx = (3.0 * (u2 - u0) + 10.0 * (m2 - m0) + 3.0 * (d2 - d0)) * (1.0 / 32.0);
+                let gy = (3.0 * (d0 - u0) + 10.0 * (d1 - u1) + 3.0 * (d2 - u2)) * (1.0 / 32.0);
+                *ti = m1;
+                *tx = gx;
+                *ty = gy;
                 a11 += gx * gx;
                 a12 += gx * gy;
                 a22 += gy * gy;
-                k += 1;
             }
             up = mid;
             mid = down;

@@ -1,1 +1,2 @@
+mod opencv;
 mod tracker;
