@@ -28,6 +28,7 @@ pub mod dataset;
 pub mod error;
 pub mod font;
 pub mod generate;
+pub mod import;
 pub mod raster;
 pub mod scene;
 pub mod sign;
@@ -42,5 +43,9 @@ pub use dataset::{
 pub use error::DataError;
 pub use frugal_runtime::{BBox, ClassId};
 pub use generate::{generate, generate_or_reuse};
+pub use import::{ClassMap, Format, ImportOptions, export_coco, import};
 pub use sign::{SignStyle, render_sign};
 pub use summary::{Summary, summary};
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,479 @@
+//! Whole-crate tests on the tiny profile: determinism, splits, reuse, import → export
+//! → import round trips and the errors for malformed input.
+use crate::*;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+/// One tiny dataset shared by the tests (generated once).
+fn tiny() -> &'static Dataset {
+    static DS: OnceLock<(tempfile::TempDir, Dataset)> = OnceLock::new();
+    &DS.get_or_init(|| {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let ds = generate(&GenConfig::tiny(), &dir.path().join("data"), false).expect("generate");
+        (dir, ds)
+    })
+    .1
+}
+
+fn files(root: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = BTreeMap::new();
+    let mut stack = vec![root.to_owned()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).expect("read_dir") {
+            let p = e.expect("entry").path();
+            if p.is_dir() {
+                stack.push(p);
+            } else {
+                let rel = p.strip_prefix(root).expect("prefix").to_owned();
+                out.insert(rel, std::fs::read(&p).expect("read"));
+            }
+        }
+    }
+    out
+}
+
+fn leftovers(parent: &Path) -> Vec<String> {
+    std::fs::read_dir(parent)
+        .expect("read_dir")
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains(".partial-"))
+        .collect()
+}
+
+#[test]
+fn same_seed_gives_identical_bytes_and_another_seed_does_not() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let config = GenConfig {
+        frames_per_video: 2,
+        ..GenConfig::tiny()
+    };
+    let a = dir.path().join("a");
+    let b = dir.path().join("b");
+    let c = dir.path().join("c");
+    generate(&config, &a, false).expect("a");
+    generate(&config, &b, false).expect("b");
+    generate(
+        &GenConfig {
+            seed: 7,
+            ..config.clone()
+        },
+        &c,
+        false,
+    )
+    .expect("c");
+    let (fa, fb, fc) = (files(&a), files(&b), files(&c));
+    assert_eq!(
+        fa.len(),
+        1 + 3 + 18 * 2,
+        "manifest, 3 COCO files, 36 frames"
+    );
+    assert_eq!(fa, fb, "same seed and config must give the same bytes");
+    assert_eq!(fa.keys().collect::<Vec<_>>(), fc.keys().collect::<Vec<_>>());
+    let differing = fa.iter().filter(|(k, v)| fc.get(*k) != Some(*v)).count();
+    assert!(
+        differing > 30,
+        "another seed changes the frames ({differing} files differ)"
+    );
+    assert!(leftovers(dir.path()).is_empty());
+}
+
+#[test]
+fn generated_dataset_loads_back_with_disjoint_splits_and_every_level() {
+    let ds = tiny();
+    let loaded = Dataset::load(&ds.root).expect("load");
+    assert_eq!(&loaded, ds);
+    assert_eq!(ds.frames.len(), 54);
+    let mut split_of = BTreeMap::new();
+    for f in &ds.frames {
+        let prev = split_of.insert(f.video, f.split);
+        assert!(
+            prev.is_none() || prev == Some(f.split),
+            "video {} in two splits",
+            f.video
+        );
+        assert_eq!(ds.video(f.video).map(|v| v.split), Some(f.split));
+        for o in &f.objects {
+            assert!(o.bbox.is_valid() && o.bbox.x1 >= 0.0 && o.bbox.y1 >= 0.0);
+            assert!(o.bbox.x2 <= f.width as f32 && o.bbox.y2 <= f.height as f32);
+        }
+        let rgb = loaded.load_rgb(f).expect("rgb");
+        assert_eq!(rgb.dimensions(), (192, 108));
+    }
+    for split in Split::ALL {
+        let levels: std::collections::BTreeSet<_> = ds
+            .split(split)
+            .filter_map(|f| ds.video(f.video))
+            .map(|v| (v.clutter, v.light))
+            .collect();
+        assert_eq!(levels.len(), 6, "{split} has every scenario combination");
+    }
+    assert!(ds.frames.iter().map(|f| f.objects.len()).sum::<usize>() > 30);
+}
+
+#[test]
+fn an_identical_dataset_is_reused_and_a_different_config_regenerates() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("data");
+    let config = GenConfig {
+        frames_per_video: 1,
+        ..GenConfig::tiny()
+    };
+    let (_, reused) = generate_or_reuse(&config, &out, false).expect("first");
+    assert!(!reused);
+    let (ds, reused) = generate_or_reuse(&config, &out, false).expect("second");
+    assert!(reused);
+    assert_eq!(ds.frames.len(), 18);
+    let other = GenConfig { seed: 1, ..config };
+    let (_, reused) = generate_or_reuse(&other, &out, false).expect("third");
+    assert!(!reused);
+    assert!(leftovers(dir.path()).is_empty());
+}
+
+/// Objects of each frame, in frame order, for comparing datasets.
+fn objects(ds: &Dataset) -> Vec<Vec<(ClassId, [i32; 4])>> {
+    ds.frames
+        .iter()
+        .map(|f| {
+            f.objects
+                .iter()
+                .map(|o| {
+                    let b = o.bbox;
+                    (
+                        o.class,
+                        [b.x1, b.y1, b.x2, b.y2].map(|v| (v * 100.0).round() as i32),
+                    )
+                })
+                .collect()
+        })
+        .collect()
+}
+
+fn assert_same_pixels(a: &Dataset, b: &Dataset) {
+    assert_eq!(a.frames.len(), b.frames.len());
+    for (fa, fb) in a.frames.iter().zip(&b.frames) {
+        assert_eq!(a.load_rgb(fa).expect("a"), b.load_rgb(fb).expect("b"));
+    }
+}
+
+#[test]
+fn coco_export_then_import_round_trips() {
+    let ds = tiny();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let json = export_coco(ds, None, &dir.path().join("coco")).expect("export");
+    let back = import(
+        &ImportOptions::new(Format::Coco, &json),
+        &dir.path().join("back"),
+    )
+    .expect("import");
+    assert_eq!(objects(&back), objects(ds));
+    assert_eq!(back.videos.len(), ds.videos.len());
+    for (a, b) in ds.frames.iter().zip(&back.frames) {
+        assert_eq!(
+            (a.video, a.index, a.split, &a.file),
+            (b.video, b.index, b.split, &b.file)
+        );
+    }
+    assert_same_pixels(ds, &back);
+    // And once more: export of the import equals the first export.
+    let json2 = export_coco(&back, None, &dir.path().join("coco2")).expect("export");
+    assert_eq!(
+        std::fs::read(&json).expect("1"),
+        std::fs::read(&json2).expect("2")
+    );
+}
+
+/// Write the train frames of `ds` as Pascal VOC files into `dir`.
+fn write_voc(ds: &Dataset, dir: &Path) {
+    std::fs::create_dir_all(dir).expect("mkdir");
+    for f in ds.split(Split::Train) {
+        let mut xml = format!(
+            "<annotation>\n  <folder>x</folder>\n  <filename>{}</filename>\n  <size><width>{}</width><height>{}</height><depth>3</depth></size>\n",
+            f.file.display(),
+            f.width,
+            f.height
+        );
+        for o in &f.objects {
+            let b = o.bbox;
+            xml += &format!(
+                "  <object><name>{}</name><pose>Unspecified</pose><difficult>0</difficult><bndbox><xmin>{}</xmin><ymin>{}</ymin><xmax>{}</xmax><ymax>{}</ymax></bndbox></object>\n",
+                ds.classes[usize::from(o.class)].code,
+                b.x1 + 1.0,
+                b.y1 + 1.0,
+                b.x2,
+                b.y2
+            );
+        }
+        xml += "</annotation>\n";
+        std::fs::write(dir.join(format!("{:05}.xml", f.id)), xml).expect("write");
+    }
+}
+
+/// Write the train frames of `ds` as a GTSDB CSV with numeric classes `100 + id`.
+fn write_gtsdb(ds: &Dataset, path: &Path) {
+    let mut csv = String::new();
+    for f in ds.split(Split::Train) {
+        for o in &f.objects {
+            let b = o.bbox;
+            csv += &format!(
+                "{};{};{};{};{};{}\n",
+                f.file.display(),
+                b.x1,
+                b.y1,
+                b.x2 - 1.0,
+                b.y2 - 1.0,
+                100 + o.class
+            );
+        }
+    }
+    std::fs::write(path, csv).expect("write");
+}
+
+fn train_only(ds: &Dataset) -> Vec<Vec<(ClassId, [i32; 4])>> {
+    let mut t = ds.clone();
+    t.frames.retain(|f| f.split == Split::Train);
+    objects(&t)
+}
+
+fn reimport_via_coco(first: &Dataset, dir: &Path) -> Dataset {
+    let json = export_coco(first, None, &dir.join("exported")).expect("export");
+    let second = import(
+        &ImportOptions::new(Format::Coco, &json),
+        &dir.join("second"),
+    )
+    .expect("import coco");
+    assert_eq!(objects(&second), objects(first));
+    for (a, b) in first.frames.iter().zip(&second.frames) {
+        assert_eq!((a.video, a.index, a.split), (b.video, b.index, b.split));
+    }
+    assert_same_pixels(first, &second);
+    second
+}
+
+#[test]
+fn voc_import_then_coco_export_then_import_round_trips() {
+    let ds = tiny();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let voc = dir.path().join("voc");
+    write_voc(ds, &voc);
+    let mut opts = ImportOptions::new(Format::Voc, &voc);
+    opts.images = Some(ds.root.clone());
+    let first = import(&opts, &dir.path().join("first")).expect("import voc");
+    assert_eq!(objects(&first), train_only(ds));
+    assert_eq!(
+        first.videos.len(),
+        first.frames.len(),
+        "one video per image"
+    );
+    reimport_via_coco(&first, dir.path());
+}
+
+#[test]
+fn gtsdb_import_with_class_map_then_coco_round_trips() {
+    let ds = tiny();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let csv = dir.path().join("gt.txt");
+    write_gtsdb(ds, &csv);
+    let map_path = dir.path().join("map.json");
+    let map: BTreeMap<String, String> = Sign::ALL
+        .iter()
+        .map(|s| ((100 + s.id()).to_string(), s.name().to_owned()))
+        .collect();
+    std::fs::write(&map_path, serde_json::to_string(&map).expect("json")).expect("write");
+    let mut opts = ImportOptions::new(Format::Gtsdb, &csv);
+    opts.images = Some(ds.root.clone());
+    opts.class_map = ClassMap::from_file(&map_path).expect("map");
+    let first = import(&opts, &dir.path().join("first")).expect("import gtsdb");
+    // GTSDB lists only images with signs.
+    let mut expected = train_only(ds);
+    expected.retain(|o| !o.is_empty());
+    assert_eq!(objects(&first), expected);
+    reimport_via_coco(&first, dir.path());
+
+    // Without the map the numeric classes are unknown; with --drop-unmapped they go.
+    opts.class_map = ClassMap::default();
+    let err = import(&opts, &dir.path().join("x")).expect_err("unknown");
+    let msg = err.to_string();
+    assert!(
+        msg.contains("gt.txt") && msg.contains("line 1") && msg.contains("unknown class"),
+        "{msg}"
+    );
+    opts.drop_unmapped = true;
+    let dropped = import(&opts, &dir.path().join("dropped")).expect("dropped");
+    assert!(dropped.frames.iter().all(|f| f.objects.is_empty()));
+}
+
+fn import_err(format: Format, input: &Path, images: &Path) -> String {
+    let mut opts = ImportOptions::new(format, input);
+    opts.images = Some(images.to_owned());
+    let out = input.with_extension("out");
+    let err = import(&opts, &out).expect_err("must fail").to_string();
+    assert!(!out.exists(), "nothing is written on error");
+    err
+}
+
+#[test]
+fn malformed_inputs_name_the_file_and_the_record() {
+    let ds = tiny();
+    let root = &ds.root;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path();
+    let frame = ds.frames[0].file.display().to_string();
+
+    // GTSDB: missing image, box outside, unknown class, bad number, wrong field count.
+    let cases = [
+        (
+            "missing.csv",
+            "nope/none.png;1;1;5;5;stop\n",
+            vec!["missing.csv", "line 1", "none.png", "not found"],
+        ),
+        (
+            "outside.csv",
+            &*format!("{frame};1;1;5;5;stop\n{frame};180;90;200;100;stop\n"),
+            vec!["outside.csv", "line 2", "outside"],
+        ),
+        (
+            "unknown.csv",
+            &*format!("{frame};1;1;5;5;stop\n{frame};1;1;5;5;yield\n"),
+            vec!["unknown.csv", "line 2", "yield"],
+        ),
+        (
+            "number.csv",
+            &*format!("{frame};1;1;5;5;stop\n\n{frame};1;x;5;5;stop\n"),
+            vec!["number.csv", "line 3", "y1"],
+        ),
+        (
+            "fields.csv",
+            &*format!("{frame};1;1;5;5;stop\n{frame};1;1;5;stop\n"),
+            vec!["fields.csv", "line 2", "6 fields"],
+        ),
+        ("empty.csv", "", vec!["empty.csv", "empty dataset"]),
+    ];
+    for (name, text, needles) in cases {
+        let p = d.join(name);
+        std::fs::write(&p, text).expect("write");
+        let msg = import_err(Format::Gtsdb, &p, root);
+        for n in needles {
+            assert!(msg.contains(n), "{name}: {msg:?} lacks {n:?}");
+        }
+    }
+
+    // COCO: malformed JSON (line number), dangling image id, unknown category.
+    let bad_json = d.join("bad.json");
+    std::fs::write(
+        &bad_json,
+        "{\n  \"images\": [\n    {\"id\": 1,, }\n  ]\n}\n",
+    )
+    .expect("write");
+    let msg = import_err(Format::Coco, &bad_json, root);
+    assert!(msg.contains("bad.json") && msg.contains("line 3"), "{msg}");
+    let dangling = d.join("dangling.json");
+    std::fs::write(
+        &dangling,
+        format!(
+            r#"{{"images": [{{"id": 1, "file_name": "{frame}", "width": 192, "height": 108}}],
+               "annotations": [{{"id": 9, "image_id": 2, "category_id": 1, "bbox": [1, 1, 4, 4]}}],
+               "categories": [{{"id": 1, "name": "stop"}}]}}"#
+        ),
+    )
+    .expect("write");
+    let msg = import_err(Format::Coco, &dangling, root);
+    assert!(
+        msg.contains("dangling.json")
+            && msg.contains("annotation id 9")
+            && msg.contains("image id 2"),
+        "{msg}"
+    );
+    let empty = d.join("empty.json");
+    std::fs::write(
+        &empty,
+        r#"{"images": [], "annotations": [], "categories": []}"#,
+    )
+    .expect("write");
+    assert!(import_err(Format::Coco, &empty, root).contains("empty dataset"));
+    let size = d.join("size.json");
+    std::fs::write(
+        &size,
+        format!(r#"{{"images": [{{"id": 4, "file_name": "{frame}", "width": 100, "height": 108}}], "categories": []}}"#),
+    )
+    .expect("write");
+    let msg = import_err(Format::Coco, &size, root);
+    assert!(
+        msg.contains("size.json") && msg.contains("image id 4") && msg.contains("192x108"),
+        "{msg}"
+    );
+
+    // VOC: malformed XML, unknown class.
+    let voc = d.join("voc");
+    std::fs::create_dir_all(&voc).expect("mkdir");
+    let bad_xml = voc.join("a.xml");
+    std::fs::write(
+        &bad_xml,
+        "<annotation><filename>x.png</filename><object><name>stop</name></annotation>",
+    )
+    .expect("write");
+    let msg = import_err(Format::Voc, &bad_xml, root);
+    assert!(msg.contains("a.xml") && msg.contains("XML"), "{msg}");
+    let unknown = voc.join("b.xml");
+    std::fs::write(
+        &unknown,
+        format!("<annotation><filename>{frame}</filename><object><name>stop</name><bndbox><xmin>2</xmin><ymin>2</ymin><xmax>9</xmax><ymax>9</ymax></bndbox></object><object><name>zebra</name><bndbox><xmin>2</xmin><ymin>2</ymin><xmax>9</xmax><ymax>9</ymax></bndbox></object></annotation>"),
+    )
+    .expect("write");
+    let msg = import_err(Format::Voc, &unknown, root);
+    assert!(
+        msg.contains("b.xml") && msg.contains("object 2") && msg.contains("zebra"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn a_failed_import_leaves_the_previous_dataset_untouched() {
+    let ds = tiny();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let json = export_coco(ds, Some(Split::Val), &dir.path().join("coco")).expect("export");
+    let out = dir.path().join("data");
+    import(&ImportOptions::new(Format::Coco, &json), &out).expect("good import");
+    let before = files(&out);
+    // Remove the last image: conversion fails after others were written.
+    let last = ds.split(Split::Val).last().expect("val frame").file.clone();
+    std::fs::remove_file(dir.path().join("coco").join(&last)).expect("rm");
+    let err = import(&ImportOptions::new(Format::Coco, &json), &out).expect_err("missing image");
+    assert!(err.to_string().contains("not found"), "{err}");
+    assert_eq!(files(&out), before);
+    assert!(
+        leftovers(dir.path()).is_empty(),
+        "{:?}",
+        leftovers(dir.path())
+    );
+}
+
+#[test]
+fn corrupt_own_annotations_are_reported_on_load() {
+    let ds = tiny();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let copy = dir.path().join("copy");
+    for (rel, bytes) in files(&ds.root) {
+        let p = copy.join(rel);
+        std::fs::create_dir_all(p.parent().expect("parent")).expect("mkdir");
+        std::fs::write(p, bytes).expect("write");
+    }
+    let val = copy.join("annotations/val.json");
+    let text = std::fs::read_to_string(&val).expect("read");
+    let mut coco: serde_json::Value = serde_json::from_str(&text).expect("json");
+    coco["annotations"][0]["bbox"] = serde_json::json!([180.0, 100.0, 30.0, 30.0]);
+    let id = coco["annotations"][0]["id"].clone();
+    std::fs::write(&val, serde_json::to_string(&coco).expect("json")).expect("write");
+    let msg = Dataset::load(&copy).expect_err("box outside").to_string();
+    assert!(
+        msg.contains("val.json") && msg.contains(&format!("annotation id {id}")),
+        "{msg}"
+    );
+    std::fs::write(copy.join("manifest.json"), "{").expect("write");
+    let msg = Dataset::load(&copy).expect_err("bad manifest").to_string();
+    assert!(
+        msg.contains("manifest.json") && msg.contains("line 1"),
+        "{msg}"
+    );
+}
