@@ -18,6 +18,7 @@ pub mod eval;
 pub mod mdp;
 pub mod plot;
 pub mod replay;
+pub mod report;
 pub mod sweep;
 pub mod train;
 pub mod variants;

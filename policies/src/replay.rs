@@ -160,7 +160,8 @@ impl ReplayLog {
             return Err(PolicyError::invalid(path, "variants", "no variants"));
         }
         for (i, v) in self.variants.iter().enumerate() {
-            if v.family >= self.families.len() || v.relative_cost.is_nan() || v.relative_cost < 1.0 {
+            if v.family >= self.families.len() || v.relative_cost.is_nan() || v.relative_cost < 1.0
+            {
                 return Err(PolicyError::invalid(
                     path,
                     format!("variants[{i}] ({})", v.name),

@@ -1,4 +1,7 @@
-//! Integration tests of frugal-policies against independent implementations.
+//! Integration tests of frugal-policies: the solvers against independent
+//! implementations, transition estimation, training, replay evaluation and bundles.
+
+mod it;
 
 use frugal_policies::Mdp;
 use rand::{Rng, SeedableRng};

@@ -1,0 +1,134 @@
+//! Bundle folders: write → verify → the runtime parses it and decides as the replay did;
+//! corrupted bundles and wrong hashes give errors naming the file.
+
+use super::fixture::log2;
+use frugal_data::Split;
+use frugal_policies::PolicyConfig;
+use frugal_policies::bundle::{BUNDLE_FILE, inspect, read_bundle, verify, write_bundle};
+use frugal_policies::eval::{EvalConfig, Strategy, run_with_bundle, strategy_bundle};
+use frugal_policies::replay::VideoLog;
+use frugal_policies::train::{TrainedPolicy, train};
+use frugal_policies::variants::VariantSource;
+use frugal_runtime::Bundle;
+use frugal_runtime::bundle::Bucket;
+
+/// The trained fixture policy whose expensive variant points at a folder of two fake
+/// ONNX graphs (the writer copies and hashes files; it does not load them).
+fn policy_with_files(
+    dir: &std::path::Path,
+) -> (
+    frugal_policies::ReplayLog,
+    frugal_policies::replay::MemoryFrames,
+    TrainedPolicy,
+) {
+    let (log, frames) = log2();
+    let mut p = train(&log, &PolicyConfig::default()).unwrap();
+    let onnx = dir.join("export");
+    std::fs::create_dir_all(&onnx).unwrap();
+    std::fs::write(onnx.join("backbone_rpn.onnx"), b"fake backbone graph").unwrap();
+    std::fs::write(onnx.join("roi_head.onnx"), b"fake head graph").unwrap();
+    p.variants[1].source = VariantSource::Onnx { dir: onnx };
+    (log, frames, p)
+}
+
+#[test]
+fn written_bundle_verifies_and_the_runtime_decides_as_the_replay() {
+    let dir = tempfile::tempdir().unwrap();
+    let (log, frames, policy) = policy_with_files(dir.path());
+    let cfg = EvalConfig::default();
+    let out = dir.path().join("bundle");
+    let file = write_bundle(&policy, cfg.thresholds(), &out).unwrap();
+    assert_eq!(file, out.join(BUNDLE_FILE));
+    let checked = verify(&out).unwrap();
+    assert_eq!(checked.len(), 2, "{checked:?}");
+    assert!(out.join("onnx/expensive/roi_head.onnx").is_file());
+
+    let bytes = read_bundle(&out).unwrap();
+    let b = Bundle::parse(&bytes).unwrap();
+    assert_eq!(b.variant_count(), 2);
+    assert_eq!(b.policy().initial(), policy.initial);
+    for bucket in Bucket::ALL {
+        for v in 0..2u16 {
+            assert_eq!(
+                b.policy().action(bucket, v),
+                Some(policy.action(bucket, usize::from(v)))
+            );
+        }
+    }
+    assert_eq!(
+        b.variant(1).unwrap().onnx_file,
+        "onnx/expensive/backbone_rpn.onnx"
+    );
+
+    // Same decisions, frame by frame, from the file as from the replay's own bundle.
+    let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
+    let mine = strategy_bundle(&log, &policy, Strategy::MdpTracker, 1, &cfg)
+        .unwrap()
+        .unwrap();
+    let a = run_with_bundle(
+        &log,
+        &videos,
+        Strategy::MdpTracker,
+        &mine,
+        Some(&frames),
+        &cfg,
+    )
+    .unwrap();
+    let b = run_with_bundle(
+        &log,
+        &videos,
+        Strategy::MdpTracker,
+        &bytes,
+        Some(&frames),
+        &cfg,
+    )
+    .unwrap();
+    let key = |r: &[frugal_policies::eval::VideoRun]| -> Vec<_> {
+        r.iter()
+            .flat_map(|v| {
+                v.frames
+                    .iter()
+                    .map(|t| (t.frame, t.detect, t.reason.clone(), t.state))
+            })
+            .collect()
+    };
+    assert_eq!(key(&a), key(&b));
+    assert!(
+        key(&a).iter().any(|k| k.1.is_none()),
+        "some frames are tracked"
+    );
+
+    let text = inspect(&out).unwrap();
+    assert!(
+        text.contains("expensive") && text.contains("good enough") && text.contains("mdp.alpha"),
+        "{text}"
+    );
+}
+
+#[test]
+fn corrupted_bundle_and_wrong_hash_name_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, _, policy) = policy_with_files(dir.path());
+    let out = dir.path().join("bundle");
+    write_bundle(&policy, EvalConfig::default().thresholds(), &out).unwrap();
+
+    let head = out.join("onnx/expensive/roi_head.onnx");
+    std::fs::write(&head, b"tampered").unwrap();
+    let e = verify(&out).unwrap_err().to_string();
+    assert!(
+        e.contains("roi_head.onnx") && e.contains("SHA-256 mismatch"),
+        "{e}"
+    );
+
+    std::fs::remove_file(&head).unwrap();
+    let e = verify(&out).unwrap_err().to_string();
+    assert!(e.contains("roi_head.onnx") && e.contains("missing"), "{e}");
+
+    let file = out.join(BUNDLE_FILE);
+    let mut bytes = std::fs::read(&file).unwrap();
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0x5a;
+    std::fs::write(&file, &bytes).unwrap();
+    let e = verify(&out).unwrap_err().to_string();
+    assert!(e.contains("policy.frpb") && e.contains("checksum"), "{e}");
+}

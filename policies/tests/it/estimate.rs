@@ -1,0 +1,251 @@
+//! Transition estimation, smoothing, training and the α sweep.
+
+use super::fixture::{log2, log3};
+use frugal_data::{Clutter, Light, Split};
+use frugal_policies::eval::EvalConfig;
+use frugal_policies::replay::{Det, FrameLog, LOG_FORMAT, LOG_VERSION, VideoLog};
+use frugal_policies::sweep::sweep;
+use frugal_policies::train::{Transitions, state, train};
+use frugal_policies::variants::{
+    CNN_BUCKETS, FamilyInfo, SyntheticSpec, VariantInfo, VariantSource,
+};
+use frugal_policies::{PolicyConfig, ReplayLog};
+use frugal_runtime::bundle::Bucket;
+
+fn det(score: f32) -> Det {
+    Det {
+        class: 0,
+        score,
+        bbox: [0.0, 0.0, 10.0, 10.0],
+    }
+}
+
+/// Two variants, three frames:
+/// frame 0: v0 0.7 (good enough), v1 0.95 (optimal);
+/// frame 1: v0 nothing (miss),    v1 0.95 (optimal);
+/// frame 2: v0 0.7 (good enough), v1 0.4 (inadequate).
+fn hand_log() -> ReplayLog {
+    let frames = vec![
+        (vec![det(0.7)], vec![det(0.95)]),
+        (vec![], vec![det(0.95)]),
+        (vec![det(0.7)], vec![det(0.4)]),
+    ];
+    let variant = |name: &str, latency: f64| VariantInfo {
+        name: name.into(),
+        family: 0,
+        latency_ms: latency,
+        relative_cost: latency,
+        source: VariantSource::Synthetic(SyntheticSpec::default()),
+    };
+    ReplayLog {
+        format: LOG_FORMAT.into(),
+        version: LOG_VERSION,
+        dataset: "".into(),
+        classes: 1,
+        families: vec![FamilyInfo {
+            name: "cnn".into(),
+            buckets: CNN_BUCKETS,
+        }],
+        variants: vec![variant("a", 1.0), variant("b", 4.0)],
+        max_detections: 8,
+        videos: vec![VideoLog {
+            id: 0,
+            clutter: Clutter::Low,
+            light: Light::Normal,
+            split: Split::Train,
+            width: 64,
+            height: 64,
+            frames: frames
+                .into_iter()
+                .enumerate()
+                .map(|(i, (a, b))| FrameLog {
+                    index: i as u32,
+                    truth: vec![],
+                    detections: vec![a, b],
+                })
+                .collect(),
+        }],
+    }
+}
+
+#[test]
+fn transition_counts_of_a_hand_made_log() {
+    use Bucket::*;
+    let log = hand_log();
+    let t = Transitions::count(&log, |_| true);
+    let s_n = 8;
+    let count = |s: usize, a: usize, b: Bucket| t.counts[(a * s_n + s) * 4 + b.index()];
+    // (f0 → f1): from (ge, a) and (opt, b); (f1 → f2): from (miss, a) and (opt, b).
+    let (ge_a, opt_b, miss_a) = (
+        state(GoodEnough, 0, 2),
+        state(Optimal, 1, 2),
+        state(Miss, 0, 2),
+    );
+    assert_eq!(count(ge_a, 0, Miss), 1);
+    assert_eq!(count(ge_a, 1, Optimal), 1);
+    assert_eq!(count(miss_a, 0, GoodEnough), 1);
+    assert_eq!(count(miss_a, 1, Inadequate), 1);
+    assert_eq!(count(opt_b, 0, Miss), 1);
+    assert_eq!(count(opt_b, 0, GoodEnough), 1);
+    assert_eq!(count(opt_b, 1, Optimal), 1);
+    assert_eq!(count(opt_b, 1, Inadequate), 1);
+    assert_eq!(
+        t.counts.iter().sum::<u64>(),
+        8,
+        "2 pairs × 2 current variants × 2 actions"
+    );
+    assert_eq!(t.samples(opt_b, 1), 2);
+    assert_eq!(t.samples(ge_a, 0), 1);
+    assert_eq!(t.samples(state(Optimal, 0, 2), 0), 0);
+}
+
+#[test]
+fn smoothing_spreads_mass_over_the_actions_buckets() {
+    let log = hand_log();
+    let t = Transitions::count(&log, |_| true);
+    let opt_b = state(Bucket::Optimal, 1, 2);
+    // counts (opt 1, ge 0, ua 1, miss 0) under λ = 1: (1+1)/(2+4) and (0+1)/(2+4).
+    assert!((t.prob(opt_b, 1, 0, 1.0) - 2.0 / 6.0).abs() < 1e-12);
+    assert!((t.prob(opt_b, 1, 1, 1.0) - 1.0 / 6.0).abs() < 1e-12);
+    assert!((t.prob(opt_b, 1, 0, 0.0) - 0.5).abs() < 1e-12);
+    assert_eq!(t.prob(opt_b, 1, 1, 0.0), 0.0);
+    // A row without samples and without smoothing is uniform, not NaN.
+    assert_eq!(t.prob(state(Bucket::Optimal, 0, 2), 0, 3, 0.0), 0.25);
+    // The MDP's next state is always the action's variant, rows sum to one, and the
+    // reward is the expectation of w / r^α.
+    let cfg = PolicyConfig::default();
+    let mdp = t.mdp(&[1.0, 4.0], &cfg).unwrap();
+    for s in 0..8 {
+        for a in 0..2 {
+            let row: f64 = (0..8).map(|s2| mdp.prob(a, s, s2)).sum();
+            assert!((row - 1.0).abs() < 1e-12);
+            for s2 in 0..8 {
+                if s2 % 2 != a {
+                    assert_eq!(mdp.prob(a, s, s2), 0.0);
+                }
+            }
+        }
+    }
+    let w = cfg.weights;
+    let want = (2.0 * w.opt + 1.0 * w.ge + 2.0 * w.ua + 1.0 * w.miss) / 6.0 / 4.0;
+    assert!((mdp.r[opt_b * 2 + 1] - want).abs() < 1e-12);
+}
+
+#[test]
+fn learned_policy_runs_cheap_when_adequate_and_expensive_when_cheap_misses() {
+    let (log, _) = log2();
+    assert_eq!(log.variants[0].name, "cheap", "sorted cheapest first");
+    assert_eq!(log.variants[1].relative_cost, 5.0);
+    let p = train(&log, &PolicyConfig::default()).unwrap();
+    assert!(p.policy_iteration_agrees);
+    assert_eq!(p.action(Bucket::GoodEnough, 0), 0, "{:?}", p.actions);
+    assert_eq!(p.action(Bucket::Miss, 0), 1, "{:?}", p.actions);
+    assert_eq!(p.training_videos, vec![0, 1, 2, 3]);
+    // Every row is backed by the training pairs that reached its state.
+    let pairs: u64 = log
+        .split(Split::Train)
+        .map(|v| v.frames.len() as u64 - 1)
+        .sum();
+    let total: u64 = p.samples.iter().sum();
+    assert_eq!(total, pairs * 2 * 2);
+}
+
+#[test]
+fn alpha_sweep_trades_accuracy_for_cost_monotonically() {
+    let (log, _) = log3();
+    let cfg = PolicyConfig {
+        sweep_alpha: vec![0.0, 0.5, 1.0, 2.0, 4.0, 8.0],
+        sweep_ge_scale: vec![1.0],
+        // w_opt slightly above w_ge: at α = 0 an optimal score on a costly variant beats
+        // a good-enough one on the cheap variant; as α grows, cost wins.
+        weights: frugal_policies::Weights {
+            opt: 12.0,
+            ge: 10.0,
+            ua: 0.0,
+            miss: 0.0,
+        },
+        ..PolicyConfig::default()
+    };
+    let pts = sweep(&log, &cfg, &EvalConfig::default()).unwrap();
+    assert_eq!(pts.len(), 6);
+    for w in pts.windows(2) {
+        assert!(
+            w[1].ms_per_frame <= w[0].ms_per_frame + 1e-9,
+            "cost rose from α {} to α {}: {pts:#?}",
+            w[0].alpha,
+            w[1].alpha
+        );
+    }
+    let (first, last) = (&pts[0], &pts[pts.len() - 1]);
+    assert!(last.ms_per_frame < first.ms_per_frame, "{pts:#?}");
+    assert!(last.f1 <= first.f1 + 1e-9, "{pts:#?}");
+}
+
+#[test]
+fn config_rejects_unknown_keys_and_bad_ranges() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("policy.toml");
+    std::fs::write(&p, "alpha = 2.0\nbogus = 1\n").unwrap();
+    let e = PolicyConfig::read(&p).unwrap_err().to_string();
+    assert!(e.contains("policy.toml") && e.contains("bogus"), "{e}");
+    std::fs::write(&p, "gamma = 1.5\n").unwrap();
+    let e = PolicyConfig::read(&p).unwrap_err().to_string();
+    assert!(e.contains("gamma"), "{e}");
+    std::fs::write(&p, "alpha = 2.0\n[weights]\nge = 20.0\n").unwrap();
+    let c = PolicyConfig::read(&p).unwrap();
+    assert_eq!((c.alpha, c.weights.ge, c.weights.opt), (2.0, 20.0, 2.0));
+}
+
+#[test]
+fn replay_log_round_trips_and_rejects_a_wrong_version() {
+    let (log, _) = log2();
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("replay.json");
+    log.save(&p).unwrap();
+    assert_eq!(ReplayLog::load(&p).unwrap(), log);
+    let text = std::fs::read_to_string(&p)
+        .unwrap()
+        .replace("\"version\": 1", "\"version\": 9");
+    std::fs::write(&p, text).unwrap();
+    let e = ReplayLog::load(&p).unwrap_err().to_string();
+    assert!(e.contains("replay.json") && e.contains("version 9"), "{e}");
+}
+
+#[test]
+fn estimated_mdp_solves_the_same_in_pymdptoolbox() {
+    use std::io::Write;
+    use std::process::{Command, Stdio};
+    let (log, _) = log3();
+    let cfg = PolicyConfig::default();
+    let p = train(&log, &cfg).unwrap();
+    let python =
+        std::env::var_os("FRUGAL_PYTHON").expect("FRUGAL_PYTHON (set by cargo xtask setup)");
+    let m = &p.mdp;
+    let input = serde_json::json!([{"states": m.states, "actions": m.actions, "p": m.p, "r": m.r, "gamma": cfg.gamma}]);
+    let mut child = Command::new(python)
+        .arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tools/mdptoolbox_check.py"
+        ))
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(input.to_string().as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success());
+    let theirs: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
+    let pi_policy: Vec<u16> = serde_json::from_value(theirs[0]["pi_policy"].clone()).unwrap();
+    let vi_policy: Vec<u16> = serde_json::from_value(theirs[0]["vi_policy"].clone()).unwrap();
+    let values: Vec<f64> = serde_json::from_value(theirs[0]["pi_values"].clone()).unwrap();
+    assert_eq!(p.actions, pi_policy);
+    assert_eq!(p.actions, vi_policy);
+    for (a, b) in p.values.iter().zip(&values) {
+        assert!((a - b).abs() < 1e-6, "frugal {a} vs pymdptoolbox {b}");
+    }
+}

@@ -1,0 +1,102 @@
+//! The strategies replayed through the runtime's controller and the real KLT tracker.
+
+use super::fixture::log2;
+use frugal_data::Split;
+use frugal_policies::PolicyConfig;
+use frugal_policies::eval::{EvalConfig, Strategy, run_all, scores};
+use frugal_policies::replay::VideoLog;
+use frugal_policies::report::evaluate_and_write;
+use frugal_policies::train::train;
+
+#[test]
+fn strategies_run_and_the_oracle_is_never_slower_or_worse_than_static() {
+    let (log, frames) = log2();
+    let policy = train(&log, &PolicyConfig::default()).unwrap();
+    let cfg = EvalConfig::default();
+    let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
+    let runs = run_all(&log, &policy, &videos, Some(&frames), &cfg, &Strategy::ALL).unwrap();
+    assert_eq!(
+        runs.static_variant, 1,
+        "the expensive variant is the most accurate"
+    );
+    let sc = scores(&log, &videos, &runs, &cfg);
+    // 4 scenarios + all, 6 strategies each.
+    assert_eq!(sc.len(), 5 * 6);
+    for scen in [
+        "low-clutter",
+        "medium-clutter",
+        "high-clutter",
+        "low-light",
+        "all",
+    ] {
+        let get = |s: Strategy| {
+            sc.iter()
+                .find(|x| x.scenario == scen && x.strategy == s.name())
+                .unwrap()
+        };
+        let (st, or) = (get(Strategy::Static), get(Strategy::Oracle));
+        assert!(
+            or.total_ms <= st.total_ms + 1e-9,
+            "{scen}: {or:?} vs {st:?}"
+        );
+        assert!(or.f1 >= st.f1 - 1e-12, "{scen}: {or:?} vs {st:?}");
+        assert_eq!(st.detections, st.frames, "static detects every frame");
+        assert_eq!(get(Strategy::Mdp).detections, st.frames);
+        // The tracker carries the box: fewer detections than frames.
+        let mt = get(Strategy::MdpTracker);
+        assert!(mt.detections < mt.frames, "{scen}: {mt:?}");
+    }
+    let all = |s: Strategy| {
+        sc.iter()
+            .find(|x| x.scenario == "all" && x.strategy == s.name())
+            .unwrap()
+    };
+    // In normal light the cheap variant is adequate, so the MDP is cheaper than static.
+    assert!(all(Strategy::Mdp).total_ms < all(Strategy::Static).total_ms);
+    // The real tracker keeps the sign: static + tracker stays accurate.
+    assert!(
+        all(Strategy::StaticTracker).f1 > 0.8,
+        "{:?}",
+        all(Strategy::StaticTracker)
+    );
+    let stt = all(Strategy::StaticTracker);
+    assert!(stt.detections * 3 < stt.frames, "{stt:?}");
+    assert!(runs.cost.samples.1 > 0 && runs.cost.track_ms > 0.0);
+}
+
+#[test]
+fn eval_writes_tables_and_figures() {
+    let (log, frames) = log2();
+    let policy = train(&log, &PolicyConfig::default()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let (report, _) = evaluate_and_write(
+        &log,
+        &policy,
+        &frames,
+        &EvalConfig::default(),
+        dir.path(),
+        None,
+    )
+    .unwrap();
+    assert_eq!(report.static_variant, "expensive");
+    for f in [
+        "eval.json",
+        "eval.csv",
+        "bars-time.png",
+        "bars-time.svg",
+        "bars-f1.png",
+        "bars-f1.svg",
+        "clip.png",
+        "clip.svg",
+        "states.png",
+        "states.svg",
+        "states.json",
+    ] {
+        let len = std::fs::metadata(dir.path().join(f))
+            .map(|m| m.len())
+            .unwrap_or(0);
+        assert!(len > 100, "{f} missing or empty");
+    }
+    let csv = std::fs::read_to_string(dir.path().join("eval.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 5 * 6);
+}
