@@ -1,0 +1,670 @@
+//! The closed loop: render → perceive → decide → fly, with simulated time advanced by
+//! the perception's compute time × the device slowdown.
+//!
+//! Timing model. Frame `k` is captured at simulated time `t_k` (the world — drone pose,
+//! pedestrians — as it is then). Perception takes `dt_k = compute_ms / 1000 × slowdown`
+//! seconds (at least one camera period); during `[t_k, t_k + dt_k]` the drone keeps
+//! flying on the command decided from the previous frame; at `t_{k+1} = t_k + dt_k`
+//! the navigator decides from frame `k`'s detections and the next frame is captured.
+//!
+//! Speed cap. The drone may not fly further than `react_distance` between two
+//! processed frames: `v = min(v_max, react_distance / dt̄)` with `dt̄` an exponential
+//! average of recent frame intervals, so slow perception really slows the flight.
+use crate::maze::{Maze, cell_center};
+use crate::perception::{DeviceProfile, FrameInput, Perception, PerceptionError};
+use crate::render::{CameraSpec, FrameTruth, Pose, Renderer, Walker};
+use crate::texture::{hash_n, unit};
+use frugal_data::{NavAction, Sign};
+use frugal_runtime::{Detection, FrameRef};
+use std::f64::consts::{FRAC_PI_2, TAU};
+use std::time::Instant;
+use thiserror::Error;
+
+/// Navigation parameters.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct NavConfig {
+    /// Top speed, m/s.
+    pub v_max: f64,
+    /// Furthest the drone may fly between two processed frames, metres.
+    pub react_distance: f64,
+    /// Turn when a centred turn sign is estimated this close, metres (`None`: half a
+    /// cell, i.e. at the junction's centre when the sign is on its far wall).
+    pub turn_distance: Option<f64>,
+    /// Land when a centred STOP sign is estimated this close (`None`: half a cell).
+    pub land_distance: Option<f64>,
+    /// Stop and hover when a WAIT sign is estimated this close, metres.
+    pub wait_distance: f64,
+    /// Shortest hover at a WAIT sign, seconds.
+    pub wait_min_s: f64,
+    /// After a WAIT stop, for this many metres travelled the drone hovers whenever a
+    /// pedestrian is in view closer than `pedestrian_distance` (`None`: three cells).
+    pub wait_zone_length: Option<f64>,
+    /// Pedestrians further than this (depth, metres) are ignored.
+    pub pedestrian_distance: f64,
+    /// Turn and STOP signs count only when their box centre is within this fraction
+    /// of the image width from the centre.
+    pub centre_band: f64,
+    /// Yaw rate while turning, degrees per second (the drone hovers while it turns).
+    pub yaw_rate_deg: f64,
+    /// Distance to travel after a turn before another turn sign is obeyed (`None`:
+    /// half a cell).
+    pub rearm_distance: Option<f64>,
+    /// Drone radius for collisions with walls, metres.
+    pub radius: f64,
+    /// Simulated time after which a flight that has not landed fails, seconds.
+    pub time_limit_s: f64,
+    /// The camera delivers at most this many frames per second.
+    pub camera_fps: f64,
+}
+
+impl Default for NavConfig {
+    /// The paper's regime: 40 cm/s top speed, 3 cm reaction distance (so 1.9 fps
+    /// gives ≈ 5.7 cm/s, as the paper's static model), 90°/s turns.
+    fn default() -> Self {
+        Self {
+            v_max: 0.4,
+            react_distance: 0.03,
+            turn_distance: None,
+            land_distance: None,
+            wait_distance: 3.0,
+            wait_min_s: 1.0,
+            wait_zone_length: None,
+            pedestrian_distance: 8.0,
+            centre_band: 0.3,
+            yaw_rate_deg: 90.0,
+            rearm_distance: None,
+            radius: 0.25,
+            time_limit_s: 1800.0,
+            camera_fps: 60.0,
+        }
+    }
+}
+
+/// Everything a flight needs besides the maze and the perception.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FlightConfig {
+    /// The camera.
+    pub camera: CameraSpec,
+    /// Navigation parameters.
+    pub nav: NavConfig,
+    /// The on-board computer.
+    pub device: DeviceProfile,
+}
+
+impl Default for FlightConfig {
+    fn default() -> Self {
+        Self {
+            camera: CameraSpec::default(),
+            nav: NavConfig::default(),
+            device: DeviceProfile::tx2_like(),
+        }
+    }
+}
+
+/// How a flight ended.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Outcome {
+    /// Landed in the goal cell.
+    Success,
+    /// Landed at a STOP sign outside the goal cell.
+    LandedOutsideGoal {
+        /// The cell it landed in.
+        cell: (usize, usize),
+    },
+    /// Touched a wall.
+    Collision {
+        /// Where, world metres.
+        x: f64,
+        /// Where, world metres.
+        y: f64,
+    },
+    /// Did not land within the time limit.
+    TimeLimit {
+        /// The limit, seconds.
+        limit_s: f64,
+    },
+}
+
+impl Outcome {
+    /// True for [`Outcome::Success`].
+    pub fn is_success(&self) -> bool {
+        matches!(self, Outcome::Success)
+    }
+
+    /// One line for people.
+    pub fn describe(&self) -> String {
+        match self {
+            Outcome::Success => "landed at the goal".into(),
+            Outcome::LandedOutsideGoal { cell } => format!("landed at a STOP sign in cell {cell:?}, not the goal"),
+            Outcome::Collision { x, y } => format!("collided with a wall at ({x:.2}, {y:.2}) m"),
+            Outcome::TimeLimit { limit_s } => {
+                format!("goal not reached within the {limit_s:.0} s time limit")
+            }
+        }
+    }
+}
+
+/// The navigator's state.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Mode {
+    /// Flying along the corridor.
+    Cruise,
+    /// Hovering while a pedestrian is in view in a WAIT zone.
+    HoldForPedestrian,
+    /// Turning in place towards a new heading.
+    Turning,
+    /// Hovering at a WAIT sign.
+    Waiting,
+    /// Landed (or crashed); the flight is over.
+    Done,
+}
+
+/// A point of the trajectory.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TrackPoint {
+    /// Simulated time, s.
+    pub t: f64,
+    /// East, m.
+    pub x: f64,
+    /// South, m.
+    pub y: f64,
+    /// Yaw, rad.
+    pub yaw: f64,
+    /// Navigator mode.
+    pub mode: Mode,
+}
+
+/// Something the navigator did.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Event {
+    /// Simulated time, s.
+    pub t: f64,
+    /// East, m.
+    pub x: f64,
+    /// South, m.
+    pub y: f64,
+    /// What happened.
+    pub what: String,
+}
+
+/// The record of one flight.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FlightResult {
+    /// Maze name.
+    pub maze: String,
+    /// Seed.
+    pub seed: u64,
+    /// Perception label.
+    pub perception: String,
+    /// Device profile.
+    pub device: DeviceProfile,
+    /// How it ended.
+    pub outcome: Outcome,
+    /// Simulated duration, s.
+    pub time_s: f64,
+    /// Processed frames.
+    pub frames: u64,
+    /// Processed frames per simulated second.
+    pub fps: f64,
+    /// Distance flown, m.
+    pub path_m: f64,
+    /// `path_m / time_s`, m/s.
+    pub avg_velocity: f64,
+    /// Mean perception compute time (before the slowdown), ms.
+    pub compute_ms_mean: f64,
+    /// Mean wall-clock render time per frame on this machine, ms.
+    pub render_ms_mean: f64,
+    /// Simulated seconds spent hovering at WAIT signs or for pedestrians.
+    pub wait_s: f64,
+    /// Frames in which a sign was visible (≥ 8 px tall, ≥ half visible).
+    pub sign_frames: u64,
+    /// Of those, how many had a detection of the right class with IoU ≥ 0.5.
+    pub sign_hits: u64,
+    /// Detections matching no visible sign.
+    pub false_detections: u64,
+    /// Trajectory, sampled every 0.25 s and at every mode change.
+    pub track: Vec<TrackPoint>,
+    /// Turns, waits, landing, collision.
+    pub events: Vec<Event>,
+}
+
+/// What an observer sees of each processed frame.
+pub struct FrameView<'a> {
+    /// Frame index.
+    pub index: u64,
+    /// Capture time, s.
+    pub time_s: f64,
+    /// Drone pose at capture.
+    pub pose: Pose,
+    /// The image.
+    pub image: FrameRef<'a>,
+    /// The ground truth.
+    pub truth: &'a FrameTruth,
+    /// What perception returned.
+    pub detections: &'a [Detection],
+    /// The navigator's mode after deciding on this frame.
+    pub mode: Mode,
+}
+
+/// Why a flight could not be run (a failed flight is not an error: see [`Outcome`]).
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum FlightError {
+    /// Perception failed on a frame.
+    #[error("perception `{name}` failed on frame {frame}: {source}")]
+    Perception {
+        /// Perception label.
+        name: String,
+        /// Frame index.
+        frame: u64,
+        /// The cause.
+        source: PerceptionError,
+    },
+    /// A nonsensical parameter.
+    #[error("invalid flight parameter: {0}")]
+    Config(String),
+}
+
+/// A per-seed random number in `[0, 1)`.
+fn rnd(seed: u64, k: i64) -> f64 {
+    f64::from(unit(hash_n(&[seed as i64, k, 0x51])))
+}
+
+/// Where the drone starts for `seed`: the start cell's centre, moved up to ±0.15 m
+/// sideways and ±0.3 m along the heading.
+pub fn start_pose(maze: &Maze, seed: u64) -> Pose {
+    let (cx, cy) = cell_center(maze.start, maze.cell);
+    let (dx, dy) = maze.heading.vector();
+    let along = (rnd(seed, 1) * 2.0 - 1.0) * 0.3;
+    let side = (rnd(seed, 2) * 2.0 - 1.0) * 0.15;
+    Pose {
+        x: cx + dx * along - dy * side,
+        y: cy + dy * along + dx * side,
+        yaw: maze.heading.yaw(),
+    }
+}
+
+/// True when a disc of `radius` at `(x, y)` overlaps a wall cell.
+pub fn collides(maze: &Maze, x: f64, y: f64, radius: f64) -> bool {
+    let cell = maze.cell;
+    let (c, r) = ((x / cell).floor() as i64, (y / cell).floor() as i64);
+    for dr in -1..=1 {
+        for dc in -1..=1 {
+            let (cc, rr) = (c + dc, r + dr);
+            if !maze.is_wall(cc, rr) {
+                continue;
+            }
+            let (x0, y0) = (cc as f64 * cell, rr as f64 * cell);
+            let nx = x.clamp(x0, x0 + cell);
+            let ny = y.clamp(y0, y0 + cell);
+            if (nx - x).powi(2) + (ny - y).powi(2) < radius * radius {
+                return true;
+            }
+        }
+    }
+    false
+}
+
+fn wrap(a: f64) -> f64 {
+    let a = a.rem_euclid(TAU);
+    if a > std::f64::consts::PI { a - TAU } else { a }
+}
+
+/// Fly `maze` once with `perception` and `seed`. `observer` sees every processed frame
+/// (to save images); pass `None` when not needed.
+pub fn fly(
+    maze: &Maze,
+    config: &FlightConfig,
+    perception: &mut dyn Perception,
+    seed: u64,
+    mut observer: Option<&mut dyn FnMut(&FrameView<'_>)>,
+) -> Result<FlightResult, FlightError> {
+    let nav = &config.nav;
+    let cam = config.camera;
+    if !(nav.v_max > 0.0 && nav.react_distance > 0.0 && nav.time_limit_s > 0.0 && nav.camera_fps > 0.0) {
+        return Err(FlightError::Config(
+            "v_max, react_distance, time_limit_s and camera_fps must be positive".into(),
+        ));
+    }
+    if !(config.device.slowdown > 0.0 && config.device.slowdown.is_finite()) {
+        return Err(FlightError::Config(format!(
+            "device slowdown must be positive, got {}",
+            config.device.slowdown
+        )));
+    }
+    if cam.width < 16 || cam.height < 16 || !(1.0..179.0).contains(&cam.hfov_deg) {
+        return Err(FlightError::Config(format!(
+            "camera {}×{} with {}° field of view",
+            cam.width, cam.height, cam.hfov_deg
+        )));
+    }
+    let half_cell = maze.cell / 2.0;
+    let turn_distance = nav.turn_distance.unwrap_or(half_cell);
+    let land_distance = nav.land_distance.unwrap_or(half_cell);
+    let zone_length = nav.wait_zone_length.unwrap_or(3.0 * maze.cell);
+    let rearm = nav.rearm_distance.unwrap_or(half_cell);
+    let yaw_rate = nav.yaw_rate_deg.to_radians();
+    let name = perception.name();
+
+    let mut renderer = Renderer::new(maze, cam, seed);
+    let offsets: Vec<f64> = (0..maze.zones.len())
+        .map(|i| rnd(seed, 100 + i as i64) * maze.zones[i].period)
+        .collect();
+    let mut pose = start_pose(maze, seed);
+    let mut target_yaw = pose.yaw;
+    let mut mode = Mode::Cruise;
+    let mut speed = 0.0; // hover until the first frame is processed
+    let mut t = 0.0;
+    let mut dt_avg: Option<f64> = None;
+    let mut odo = 0.0;
+    let mut turn_armed_at = 0.0;
+    let mut wait_zone_until = f64::NEG_INFINITY;
+    let mut wait_started = 0.0;
+    let mut wait_s = 0.0;
+    let mut rgb = Vec::new();
+    let mut track = vec![TrackPoint {
+        t,
+        x: pose.x,
+        y: pose.y,
+        yaw: pose.yaw,
+        mode,
+    }];
+    let mut events = Vec::new();
+    let mut frames = 0u64;
+    let (mut compute_total, mut render_total) = (0.0, 0.0);
+    let (mut sign_frames, mut sign_hits, mut false_detections) = (0u64, 0u64, 0u64);
+    let f_px = cam.focal_px();
+    let min_dt = 1.0 / nav.camera_fps;
+    let outcome;
+
+    loop {
+        // Capture.
+        let walkers: Vec<Walker> = maze
+            .zones
+            .iter()
+            .enumerate()
+            .filter_map(|(i, z)| {
+                z.pedestrian_at(t, offsets[i], maze.cell).map(|pos| Walker {
+                    zone: i,
+                    pos,
+                    phase: (t + offsets[i]) * 5.0,
+                })
+            })
+            .collect();
+        let started = Instant::now();
+        let truth = renderer.render(pose, &walkers, frames, &mut rgb);
+        render_total += started.elapsed().as_secs_f64() * 1e3;
+        let image = FrameRef {
+            width: cam.width,
+            height: cam.height,
+            rgb: &rgb,
+        };
+        let percept = perception
+            .perceive(&FrameInput {
+                image,
+                time_s: t,
+                index: frames,
+                truth: &truth,
+            })
+            .map_err(|source| FlightError::Perception {
+                name: name.clone(),
+                frame: frames,
+                source,
+            })?;
+        compute_total += percept.compute_ms;
+        score(&truth, &percept.detections, &mut sign_frames, &mut sign_hits, &mut false_detections);
+        let dt = (percept.compute_ms.max(0.0) / 1e3 * config.device.slowdown).max(min_dt);
+        dt_avg = Some(dt_avg.map_or(dt, |a| a * 0.7 + dt * 0.3));
+
+        // Fly the interval on the current command.
+        let mut crashed = None;
+        let mut remaining = dt.min(nav.time_limit_s - t + 1e-9);
+        while remaining > 0.0 {
+            let step = if speed > 0.0 { remaining.min(0.02 / speed) } else { remaining };
+            if mode == Mode::Turning {
+                let diff = wrap(target_yaw - pose.yaw);
+                let turn = (yaw_rate * step).min(diff.abs());
+                pose.yaw = wrap(pose.yaw + turn * diff.signum());
+            } else if speed > 0.0 {
+                let (nx, ny) = (pose.x + pose.yaw.cos() * speed * step, pose.y + pose.yaw.sin() * speed * step);
+                odo += speed * step;
+                pose.x = nx;
+                pose.y = ny;
+                if collides(maze, nx, ny, nav.radius) {
+                    crashed = Some((nx, ny));
+                    t += step;
+                    break;
+                }
+            }
+            if matches!(mode, Mode::Waiting | Mode::HoldForPedestrian) {
+                wait_s += step;
+            }
+            t += step;
+            remaining -= step;
+        }
+        frames += 1;
+        if let Some((x, y)) = crashed {
+            events.push(Event {
+                t,
+                x,
+                y,
+                what: "collision".into(),
+            });
+            outcome = Outcome::Collision { x, y };
+            break;
+        }
+        if t >= nav.time_limit_s {
+            outcome = Outcome::TimeLimit {
+                limit_s: nav.time_limit_s,
+            };
+            break;
+        }
+
+        // Decide on this frame's detections.
+        let prev_mode = mode;
+        let ped_close = truth
+            .pedestrians
+            .iter()
+            .any(|p| p.depth <= nav.pedestrian_distance);
+        let mut landed = false;
+        match mode {
+            Mode::Turning => {
+                if wrap(target_yaw - pose.yaw).abs() < 1e-6 {
+                    pose.yaw = target_yaw;
+                    mode = Mode::Cruise;
+                    turn_armed_at = odo + rearm;
+                }
+            }
+            Mode::Waiting => {
+                if t - wait_started >= nav.wait_min_s && !ped_close {
+                    mode = Mode::Cruise;
+                    wait_zone_until = odo + zone_length;
+                    events.push(Event {
+                        t,
+                        x: pose.x,
+                        y: pose.y,
+                        what: "resume: WAIT zone clear".into(),
+                    });
+                }
+            }
+            Mode::Cruise | Mode::HoldForPedestrian => {
+                mode = Mode::Cruise;
+                for (action, dist, centred) in percept.detections.iter().filter_map(|d| {
+                    let action = Sign::from_id(d.class)?.action()?;
+                    let dist = f_px * maze.sign_size / f64::from(d.bbox.height()).max(1e-3);
+                    let (cx, _) = d.bbox.center();
+                    let centred = (f64::from(cx) - f64::from(cam.width) / 2.0).abs()
+                        <= nav.centre_band * f64::from(cam.width);
+                    Some((action, dist, centred))
+                }) {
+                    match action {
+                        NavAction::Stop if centred && dist <= land_distance => {
+                            landed = true;
+                            events.push(Event {
+                                t,
+                                x: pose.x,
+                                y: pose.y,
+                                what: format!("land at STOP (estimated {dist:.2} m)"),
+                            });
+                            break;
+                        }
+                        NavAction::TurnLeft | NavAction::TurnRight
+                            if centred && dist <= turn_distance && odo >= turn_armed_at =>
+                        {
+                            let left = action == NavAction::TurnLeft;
+                            target_yaw = wrap(pose.yaw + if left { -FRAC_PI_2 } else { FRAC_PI_2 });
+                            // Snap to the grid axes so turns do not accumulate error.
+                            target_yaw = wrap((target_yaw / FRAC_PI_2).round() * FRAC_PI_2);
+                            mode = Mode::Turning;
+                            events.push(Event {
+                                t,
+                                x: pose.x,
+                                y: pose.y,
+                                what: format!(
+                                    "turn {} (estimated {dist:.2} m)",
+                                    if left { "left" } else { "right" }
+                                ),
+                            });
+                            break;
+                        }
+                        NavAction::Wait if dist <= nav.wait_distance && odo >= wait_zone_until => {
+                            mode = Mode::Waiting;
+                            wait_started = t;
+                            events.push(Event {
+                                t,
+                                x: pose.x,
+                                y: pose.y,
+                                what: format!("stop at WAIT (estimated {dist:.2} m)"),
+                            });
+                            break;
+                        }
+                        _ => {}
+                    }
+                }
+                if mode == Mode::Cruise && odo < wait_zone_until && ped_close {
+                    mode = Mode::HoldForPedestrian;
+                }
+            }
+            Mode::Done => {}
+        }
+        speed = match mode {
+            Mode::Cruise => nav.v_max.min(nav.react_distance / dt_avg.unwrap_or(dt)),
+            _ => 0.0,
+        };
+        if landed {
+            mode = Mode::Done;
+        }
+        if let Some(obs) = observer.as_mut() {
+            obs(&FrameView {
+                index: frames - 1,
+                time_s: t - dt,
+                pose,
+                image,
+                truth: &truth,
+                detections: &percept.detections,
+                mode,
+            });
+        }
+        let last_t = track.last().map_or(0.0, |p| p.t);
+        if mode != prev_mode || t - last_t >= 0.25 {
+            track.push(TrackPoint {
+                t,
+                x: pose.x,
+                y: pose.y,
+                yaw: pose.yaw,
+                mode,
+            });
+        }
+        if landed {
+            let cell = maze.cell_of(pose.x, pose.y).unwrap_or((usize::MAX, usize::MAX));
+            outcome = if cell == maze.goal {
+                Outcome::Success
+            } else {
+                Outcome::LandedOutsideGoal { cell }
+            };
+            break;
+        }
+    }
+    track.push(TrackPoint {
+        t,
+        x: pose.x,
+        y: pose.y,
+        yaw: pose.yaw,
+        mode: Mode::Done,
+    });
+    let n = frames.max(1) as f64;
+    Ok(FlightResult {
+        maze: maze.name.clone(),
+        seed,
+        perception: name,
+        device: config.device.clone(),
+        outcome,
+        time_s: t,
+        frames,
+        fps: if t > 0.0 { frames as f64 / t } else { 0.0 },
+        path_m: odo,
+        avg_velocity: if t > 0.0 { odo / t } else { 0.0 },
+        compute_ms_mean: compute_total / n,
+        render_ms_mean: render_total / n,
+        wait_s,
+        sign_frames,
+        sign_hits,
+        false_detections,
+        track,
+        events,
+    })
+}
+
+/// In-loop detection quality against the renderer's ground truth.
+fn score(truth: &FrameTruth, dets: &[Detection], frames: &mut u64, hits: &mut u64, false_dets: &mut u64) {
+    let visible: Vec<_> = truth
+        .signs
+        .iter()
+        .filter(|s| s.bbox.height() >= 8.0 && s.visible_fraction >= 0.5)
+        .collect();
+    if !visible.is_empty() {
+        *frames += 1;
+        let found = visible
+            .iter()
+            .any(|s| dets.iter().any(|d| d.class == s.class && d.bbox.iou(&s.bbox) >= 0.5));
+        if found {
+            *hits += 1;
+        }
+    }
+    *false_dets += dets
+        .iter()
+        .filter(|d| {
+            !truth
+                .signs
+                .iter()
+                .any(|s| s.class == d.class && d.bbox.iou(&s.bbox) >= 0.3)
+        })
+        .count() as u64;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    #[test]
+    fn collision_disc_against_cells() {
+        let m = Maze::parse("start 1 1 e\ngoal 1 1\nmap\n###\n#.#\n###\nend\n", Path::new("m")).unwrap();
+        assert!(!collides(&m, 4.5, 4.5, 0.25));
+        assert!(collides(&m, 3.1, 4.5, 0.25));
+        assert!(collides(&m, 5.9, 5.9, 0.25));
+    }
+
+    #[test]
+    fn start_pose_stays_near_the_start_cell_centre() {
+        let m = Maze::parse("start 1 1 s\ngoal 1 1\nmap\n###\n#.#\n###\nend\n", Path::new("m")).unwrap();
+        for seed in 0..20 {
+            let p = start_pose(&m, seed);
+            assert!((p.x - 4.5).abs() <= 0.15 + 1e-9 && (p.y - 4.5).abs() <= 0.3 + 1e-9, "{p:?}");
+            assert!((p.yaw - FRAC_PI_2).abs() < 1e-12);
+        }
+        assert_ne!(start_pose(&m, 1), start_pose(&m, 2));
+    }
+}

@@ -1,0 +1,148 @@
+//! The perception interface the flight loop calls once per processed frame, the
+//! ground-truth implementation, and device profiles that turn measured compute time
+//! into simulated time.
+use crate::render::FrameTruth;
+use frugal_runtime::{Detection, FrameRef};
+
+/// What perception is given for one frame.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameInput<'a> {
+    /// The rendered camera image (RGB8, the camera's size).
+    pub image: FrameRef<'a>,
+    /// Simulated time at which the frame was captured, seconds since take-off.
+    pub time_s: f64,
+    /// Index of the processed frame (0, 1, 2, …).
+    pub index: u64,
+    /// The renderer's ground truth for this frame. Only [`GroundTruthPerception`]
+    /// (and scoring) may read it; a detector-based implementation must ignore it.
+    pub truth: &'a FrameTruth,
+}
+
+/// What perception returns for one frame.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Percept {
+    /// Sign detections in image pixels, on the detector family's score scale.
+    pub detections: Vec<Detection>,
+    /// Compute time this frame consumed on the machine that ran it, milliseconds.
+    /// The flight multiplies it by the device profile's slowdown to advance the
+    /// simulated clock.
+    pub compute_ms: f64,
+}
+
+/// An error from a perception implementation (boxed so any detector's error fits).
+pub type PerceptionError = Box<dyn std::error::Error + Send + Sync>;
+
+/// Turns camera frames into sign detections, reporting the compute time it used.
+///
+/// Implementations: [`GroundTruthPerception`] here; later a static detector (one ONNX
+/// variant every frame) and the adaptive runtime (controller + tracker + bundle
+/// variants). A detector-based implementation measures its own wall-clock time per
+/// frame (e.g. with `std::time::Instant`) and reports it in [`Percept::compute_ms`].
+///
+/// Any `FnMut(&FrameInput) -> Result<Percept, PerceptionError>` closure is a
+/// `Perception` too.
+pub trait Perception {
+    /// A short label for tables and file names, e.g. `ground-truth`, `static-int8`.
+    fn name(&self) -> String;
+    /// Process one frame.
+    fn perceive(&mut self, input: &FrameInput<'_>) -> Result<Percept, PerceptionError>;
+}
+
+impl<F> Perception for F
+where
+    F: FnMut(&FrameInput<'_>) -> Result<Percept, PerceptionError>,
+{
+    fn name(&self) -> String {
+        "closure".to_owned()
+    }
+    fn perceive(&mut self, input: &FrameInput<'_>) -> Result<Percept, PerceptionError> {
+        self(input)
+    }
+}
+
+/// Perfect perception: the projected boxes of the visible signs, with a fixed compute
+/// time. Boards smaller than `min_height_px` or less than `min_visible` visible are
+/// left out, as a real detector would miss them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GroundTruthPerception {
+    /// Compute time reported per frame, ms (before the device slowdown).
+    pub compute_ms: f64,
+    /// Smallest box height reported, pixels.
+    pub min_height_px: f32,
+    /// Smallest visible fraction of the board reported.
+    pub min_visible: f64,
+}
+
+impl Default for GroundTruthPerception {
+    /// 5 ms per frame, boxes from 8 px tall, at least half the board visible.
+    fn default() -> Self {
+        Self {
+            compute_ms: 5.0,
+            min_height_px: 8.0,
+            min_visible: 0.5,
+        }
+    }
+}
+
+impl Perception for GroundTruthPerception {
+    fn name(&self) -> String {
+        "ground-truth".to_owned()
+    }
+
+    fn perceive(&mut self, input: &FrameInput<'_>) -> Result<Percept, PerceptionError> {
+        let detections = input
+            .truth
+            .signs
+            .iter()
+            .filter(|s| s.bbox.height() >= self.min_height_px && s.visible_fraction >= self.min_visible)
+            .map(|s| Detection {
+                bbox: s.bbox,
+                score: 1.0,
+                class: s.class,
+            })
+            .collect();
+        Ok(Percept {
+            detections,
+            compute_ms: self.compute_ms,
+        })
+    }
+}
+
+/// How much slower the simulated drone's computer is than the machine that measured
+/// the compute time: simulated seconds per frame = `compute_ms / 1000 × slowdown`.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct DeviceProfile {
+    /// Label, e.g. `tx2-like`.
+    pub name: String,
+    /// Multiplier on measured compute time (1 = the measuring machine itself).
+    pub slowdown: f64,
+}
+
+impl DeviceProfile {
+    /// The measuring machine itself (slowdown 1).
+    pub fn host() -> DeviceProfile {
+        DeviceProfile {
+            name: "host".into(),
+            slowdown: 1.0,
+        }
+    }
+
+    /// A Jetson-TX2-class on-board computer: slowdown 6, an assumption (a Cortex-A57
+    /// class CPU against one core of the x86 workstation that measures the time), to
+    /// be replaced by a calibration against real TX2 timings when they exist.
+    pub fn tx2_like() -> DeviceProfile {
+        DeviceProfile {
+            name: "tx2-like".into(),
+            slowdown: 6.0,
+        }
+    }
+
+    /// A profile by name (`host`, `tx2-like`).
+    pub fn by_name(name: &str) -> Option<DeviceProfile> {
+        match name {
+            "host" => Some(DeviceProfile::host()),
+            "tx2-like" | "tx2" => Some(DeviceProfile::tx2_like()),
+            _ => None,
+        }
+    }
+}
