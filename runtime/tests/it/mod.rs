@@ -1,2 +1,4 @@
+mod bundle;
+mod controller;
 mod opencv;
 mod tracker;
