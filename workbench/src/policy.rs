@@ -1,0 +1,227 @@
+//! `frugal policy record|train|eval`: the MDP stage (crate `frugal-policies`).
+//!
+//! ```text
+//! frugal policy record --data D --variants variants.json --out run/replay.json
+//! frugal policy train  --log run/replay.json --out run/policy [--config policy.toml]
+//! frugal policy eval   --log run/replay.json --policy run/policy/policy.json --out run/eval
+//! ```
+
+use anyhow::Context;
+use clap::{Args, Subcommand};
+use frugal_data::{Dataset, Split};
+use frugal_policies::eval::EvalConfig;
+use frugal_policies::replay::{DEFAULT_MAX_DETECTIONS, DatasetFrames, record};
+use frugal_policies::report::{evaluate_and_write, policy_table, score_table, train_and_write};
+use frugal_policies::variants::{FrameDetector, RuntimeDetector, VariantSource, VariantsFile};
+use frugal_policies::{PolicyConfig, ReplayLog, TrainedPolicy, VariantSet};
+use std::path::{Path, PathBuf};
+
+/// Arguments of `frugal policy`.
+#[derive(Args, Debug)]
+pub struct PolicyArgs {
+    #[command(subcommand)]
+    command: PolicyCommand,
+}
+
+#[derive(Subcommand, Debug)]
+enum PolicyCommand {
+    /// Run every detector variant once on every frame of the chosen splits and save
+    /// the replay log (top detections per frame and variant, and the ground truth).
+    ///
+    /// The variants file (JSON or TOML) lists `variants = [{ name, family, latency_ms,
+    /// source = { kind = "onnx", dir = "…" } }]` (or `kind = "synthetic"` for
+    /// ground-truth-derived test detectors) and optionally `families = [{ name,
+    /// buckets = { c_opt, c_ge, c_ua, t_c } }]` to override the default buckets.
+    Record(RecordArgs),
+    /// Estimate the MDP from the log's training videos, solve it (value iteration,
+    /// cross-checked by policy iteration), sweep α, write policy.json and the sweep plot.
+    Train(TrainArgs),
+    /// Replay the paper's five strategies and the oracle on the log's test videos
+    /// (the KLT tracker runs on the real frames), write eval.json/csv and the plots.
+    Eval(EvalArgs),
+}
+
+/// Options of `frugal policy record`.
+#[derive(Args, Debug)]
+struct RecordArgs {
+    /// The dataset folder.
+    #[arg(long)]
+    data: PathBuf,
+    /// The variants file.
+    #[arg(long)]
+    variants: PathBuf,
+    /// Output log (JSON).
+    #[arg(long)]
+    out: PathBuf,
+    /// Splits to replay, comma separated.
+    #[arg(long, default_value = "train,val,test", value_delimiter = ',', value_parser = crate::data::parse_split)]
+    splits: Vec<Split>,
+    /// Detections kept per frame and variant.
+    #[arg(long, default_value_t = DEFAULT_MAX_DETECTIONS)]
+    max_detections: usize,
+    /// ONNX Runtime intra-op threads per variant.
+    #[arg(long, default_value_t = 1)]
+    threads: usize,
+    /// Hide the progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+/// Options of `frugal policy train`.
+#[derive(Args, Debug)]
+struct TrainArgs {
+    /// The replay log.
+    #[arg(long)]
+    log: PathBuf,
+    /// Output folder (policy.json, sweep.json/csv/png/svg).
+    #[arg(long)]
+    out: PathBuf,
+    /// Policy config (TOML or JSON; unknown keys rejected; defaults built in).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Override α.
+    #[arg(long)]
+    alpha: Option<f64>,
+    /// Override γ.
+    #[arg(long)]
+    gamma: Option<f64>,
+}
+
+/// Options of `frugal policy eval`.
+#[derive(Args, Debug)]
+struct EvalArgs {
+    /// The replay log.
+    #[arg(long)]
+    log: PathBuf,
+    /// The trained policy (policy.json).
+    #[arg(long)]
+    policy: PathBuf,
+    /// Output folder.
+    #[arg(long)]
+    out: PathBuf,
+    /// The dataset folder (default: the one recorded in the log).
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// The test video of the per-clip figures (default: the first).
+    #[arg(long)]
+    clip: Option<u32>,
+    /// Evaluation settings (TOML or JSON; thresholds, IoU, seed).
+    #[arg(long)]
+    config: Option<PathBuf>,
+}
+
+fn open_detector(
+    v: &frugal_policies::variants::VariantInfo,
+    threads: usize,
+) -> frugal_policies::Result<Box<dyn FrameDetector>> {
+    match &v.source {
+        VariantSource::Onnx { dir } => {
+            let det = frugal_models::onnx::OrtDetector::open(dir, threads).map_err(|e| {
+                frugal_policies::PolicyError::invalid(
+                    dir,
+                    format!("variant {}", v.name),
+                    e.to_string(),
+                )
+            })?;
+            Ok(Box::new(RuntimeDetector(det)))
+        }
+        other => Err(frugal_policies::PolicyError::invalid(
+            "<variants>",
+            format!("variant {}", v.name),
+            format!("no detector for source {other:?}"),
+        )),
+    }
+}
+
+fn read_eval_config(path: Option<&Path>) -> anyhow::Result<EvalConfig> {
+    let Some(path) = path else {
+        return Ok(EvalConfig::default());
+    };
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
+    let cfg: EvalConfig = if path.extension().is_some_and(|e| e == "toml") {
+        toml::from_str(&text).with_context(|| format!("{}", path.display()))?
+    } else {
+        serde_json::from_str(&text).with_context(|| format!("{}", path.display()))?
+    };
+    Ok(cfg)
+}
+
+/// Run `frugal policy …`.
+pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
+    match args.command {
+        PolicyCommand::Record(a) => {
+            let ds = Dataset::load(&a.data)?;
+            let file = VariantsFile::read(&a.variants)?;
+            let mut set =
+                VariantSet::from_file(&file, &a.variants, |v| open_detector(v, a.threads))?;
+            let frames = DatasetFrames::new(&ds);
+            let videos = frames.skeleton(&a.splits);
+            if videos.is_empty() {
+                anyhow::bail!("{}: no videos in splits {:?}", a.data.display(), a.splits);
+            }
+            let log = record(
+                &mut set,
+                &frames,
+                videos,
+                a.data.clone(),
+                ds.classes.len(),
+                a.max_detections,
+                !a.quiet,
+            )?;
+            log.save(&a.out)?;
+            let n: usize = log.videos.iter().map(|v| v.frames.len()).sum();
+            println!(
+                "replayed {} variants on {} frames of {} videos into {}",
+                log.variants.len(),
+                n,
+                log.videos.len(),
+                a.out.display()
+            );
+            Ok(())
+        }
+        PolicyCommand::Train(a) => {
+            let log = ReplayLog::load(&a.log)?;
+            let mut cfg = match &a.config {
+                Some(p) => PolicyConfig::read(p)?,
+                None => PolicyConfig::default(),
+            };
+            if let Some(x) = a.alpha {
+                cfg.alpha = x;
+            }
+            if let Some(x) = a.gamma {
+                cfg.gamma = x;
+            }
+            cfg.check(a.config.as_deref().unwrap_or(Path::new("<command line>")))?;
+            let (policy, sweep) = train_and_write(&log, &cfg, &EvalConfig::default(), &a.out)?;
+            print!("{}", policy_table(&policy));
+            println!("α sweep (no tracker, held-out videos):");
+            for p in &sweep {
+                println!(
+                    "  α {:<5} w_ge×{:<5} {:>8.3} ms/frame  F1 {:.3}",
+                    p.alpha, p.ge_scale, p.ms_per_frame, p.f1
+                );
+            }
+            println!("wrote {}", a.out.join("policy.json").display());
+            Ok(())
+        }
+        PolicyCommand::Eval(a) => {
+            let log = ReplayLog::load(&a.log)?;
+            let policy = TrainedPolicy::load(&a.policy)?;
+            let cfg = read_eval_config(a.config.as_deref())?;
+            let root = a.data.clone().unwrap_or_else(|| log.dataset.clone());
+            let ds = Dataset::load(&root)?;
+            let frames = DatasetFrames::new(&ds);
+            let (report, _) = evaluate_and_write(&log, &policy, &frames, &cfg, &a.out, a.clip)?;
+            println!(
+                "static variant: {}; tracker medians: pyramid {:.3} ms, track {:.3} ms/object, init {:.3} ms/object",
+                report.static_variant,
+                report.tracker_cost.pyramid_ms,
+                report.tracker_cost.track_ms,
+                report.tracker_cost.init_ms
+            );
+            print!("{}", score_table(&report.scores));
+            println!("wrote {}", a.out.display());
+            Ok(())
+        }
+    }
+}
