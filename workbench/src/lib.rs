@@ -6,8 +6,10 @@ use clap::{Parser, Subcommand};
 use std::ffi::OsString;
 
 pub mod bench;
+pub mod bundle;
 pub mod data;
 pub mod eval;
+pub mod policy;
 pub mod run;
 pub mod train;
 
@@ -34,6 +36,10 @@ enum Command {
     Export(bench::ExportArgs),
     /// Time a detector per frame through ONNX Runtime and libtorch, side by side.
     Bench(bench::BenchArgs),
+    /// The MDP stage: replay variants on videos, train the policy, evaluate strategies.
+    Policy(policy::PolicyArgs),
+    /// Write, verify or inspect a policy bundle (the file the drone loads).
+    Bundle(bundle::BundleArgs),
     /// Run the pipeline into one run folder (currently: the data stage).
     Run(run::RunArgs),
 }
@@ -51,6 +57,8 @@ where
     match cli.command {
         Command::Data(args) => data::run(args),
         Command::Run(args) => run::run(args),
+        Command::Policy(args) => policy::run(args),
+        Command::Bundle(args) => bundle::run(args),
         Command::Train(args) => train::run(args),
         Command::Eval(args) => eval::run(args),
         Command::Export(args) => bench::export(args),
