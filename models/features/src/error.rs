@@ -47,6 +47,9 @@ pub enum Error {
     /// Training data that cannot train anything.
     #[error("cannot train: {0}")]
     Training(String),
+    /// Reading a dataset failed.
+    #[error(transparent)]
+    Data(#[from] frugal_data::DataError),
     /// Reading or writing a file failed.
     #[error("{path}: {source}")]
     Io {

@@ -23,6 +23,7 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod data;
 pub mod edgeboxes;
 pub mod edges;
 pub mod error;

@@ -1,0 +1,86 @@
+//! Proposal recall, training and per-class accuracy of the feature-based family on a
+//! `frugal-data` dataset (generated with the default config when the folder holds
+//! none). Prints tables; writes the model to `<data>/../features-model.json`.
+//!
+//! `cargo run --release -p frugal-features --example features_eval -- DATA_DIR
+//!  [TRAIN_STRIDE] [TEST_STRIDE] [PARAMS...]`
+
+use frugal_data::{GenConfig, Split};
+use frugal_features::data::{class_names, load_frames};
+use frugal_features::eval::{evaluate, proposal_recall};
+use frugal_features::{HogParams, TrainConfig, train};
+use std::path::PathBuf;
+use std::time::Instant;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let dir = PathBuf::from(
+        args.first()
+            .ok_or("usage: features_eval DATA_DIR [TRAIN_STRIDE] [TEST_STRIDE] [PARAMS...]")?,
+    );
+    let train_stride: usize = args.get(1).map_or(Ok(6), |s| s.parse())?;
+    let test_stride: usize = args.get(2).map_or(Ok(4), |s| s.parse())?;
+    let mut params: Vec<HogParams> = args
+        .iter()
+        .skip(3)
+        .map(|s| s.parse())
+        .collect::<Result<_, _>>()?;
+    if params.is_empty() {
+        params.push(HogParams::BASELINE);
+    }
+    let (ds, reused) = frugal_data::generate_or_reuse(&GenConfig::default(), &dir, true)?;
+    println!(
+        "dataset {} ({}), {} frames",
+        dir.display(),
+        if reused { "reused" } else { "generated" },
+        ds.frames.len()
+    );
+    let test = load_frames(&ds, Split::Test, test_stride, usize::MAX)?;
+    let cfg = TrainConfig::default();
+    let counts = [200, 500, 1000, 2000];
+    let (recall, ms) = proposal_recall(&cfg.edgeboxes, &test, &counts, 0.5)?;
+    let signs: usize = test.iter().map(|f| f.objects.len()).sum();
+    println!(
+        "\nEdgeBoxes proposal recall at IoU 0.5, {} test frames, {signs} signs, {ms:.1} ms/frame",
+        test.len()
+    );
+    println!("| proposals | recall |\n|---|---|");
+    for (n, r) in &recall {
+        println!("| {n} | {r:.3} |");
+    }
+    let trainf = load_frames(&ds, Split::Train, train_stride, usize::MAX)?;
+    let t = Instant::now();
+    let model = train(&trainf, &class_names(&ds), &params, &cfg, &|_| {})?;
+    println!(
+        "\ntrained {} HoG configuration(s) on {} frames in {:.1} s",
+        model.hogs.len(),
+        trainf.len(),
+        t.elapsed().as_secs_f64()
+    );
+    let out = dir.with_file_name("features-model.json");
+    model.save(&out)?;
+    for p in &params {
+        let r = evaluate(&model, *p, &test, model.thresholds.ge, 0.5)?;
+        let tot = r.total();
+        println!(
+            "\nvariant {p}: {:.1} ms/frame, precision {:.3}, recall {:.3} (score >= {}, IoU 0.5)",
+            r.mean_ms,
+            tot.precision().unwrap_or(0.0),
+            tot.recall().unwrap_or(0.0),
+            r.score_threshold
+        );
+        println!("| class | TP | FP | missed | precision | recall |\n|---|---|---|---|---|---|");
+        for (name, c) in model.classes.iter().zip(&r.per_class) {
+            let f = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
+            println!(
+                "| {name} | {} | {} | {} | {} | {} |",
+                c.tp,
+                c.fp,
+                c.missed,
+                f(c.precision()),
+                f(c.recall())
+            );
+        }
+    }
+    Ok(())
+}
