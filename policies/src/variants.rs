@@ -110,6 +110,14 @@ pub enum VariantSource {
         /// The folder.
         dir: PathBuf,
     },
+    /// A HoG + SVM variant: a trained feature model file and the variant's parameter
+    /// tuple `"proposals,block,cell,bins"` (e.g. `"1000,2,8,9"`).
+    Hog {
+        /// The `frugal-features` model file.
+        model: PathBuf,
+        /// The parameter tuple.
+        params: String,
+    },
     /// A detector derived from the ground truth with controlled noise (tests, demos).
     Synthetic(SyntheticSpec),
 }
@@ -359,10 +367,13 @@ impl VariantsFile {
         };
         let base = path.parent().unwrap_or(Path::new("."));
         for v in &mut file.variants {
-            if let VariantSource::Onnx { dir } = &mut v.source
-                && dir.is_relative()
-            {
-                *dir = base.join(&*dir);
+            match &mut v.source {
+                VariantSource::Onnx { dir } | VariantSource::Hog { model: dir, .. }
+                    if dir.is_relative() =>
+                {
+                    *dir = base.join(&*dir);
+                }
+                _ => {}
             }
         }
         Ok(file)
@@ -451,8 +462,8 @@ impl VariantSet {
         }
     }
 
-    /// The set of a variants file whose sources need no outside model (synthetic
-    /// only); other kinds are built by the caller through `open`.
+    /// The set of a variants file: synthetic detectors are built here, every other
+    /// kind (ONNX, HoG) by the caller through `open`.
     pub fn from_file(
         file: &VariantsFile,
         path: &Path,
@@ -465,7 +476,7 @@ impl VariantSet {
                 VariantSource::Synthetic(spec) => {
                     Ok(Box::new(SyntheticDetector(spec.clone())) as Box<dyn FrameDetector>)
                 }
-                VariantSource::Onnx { .. } => open(v),
+                VariantSource::Onnx { .. } | VariantSource::Hog { .. } => open(v),
             })
             .collect::<Result<Vec<_>>>()?;
         Ok(Self::new(families, variants, detectors))

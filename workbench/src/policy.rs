@@ -14,7 +14,9 @@ use frugal_policies::replay::{DEFAULT_MAX_DETECTIONS, DatasetFrames, record};
 use frugal_policies::report::{evaluate_and_write, policy_table, score_table, train_and_write};
 use frugal_policies::variants::{FrameDetector, RuntimeDetector, VariantSource, VariantsFile};
 use frugal_policies::{PolicyConfig, ReplayLog, TrainedPolicy, VariantSet};
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Arguments of `frugal policy`.
 #[derive(Args, Debug)]
@@ -29,8 +31,9 @@ enum PolicyCommand {
     /// the replay log (top detections per frame and variant, and the ground truth).
     ///
     /// The variants file (JSON or TOML) lists `variants = [{ name, family, latency_ms,
-    /// source = { kind = "onnx", dir = "…" } }]` (or `kind = "synthetic"` for
-    /// ground-truth-derived test detectors) and optionally `families = [{ name,
+    /// source = { kind = "onnx", dir = "…" } }]` (or `{ kind = "hog", model = "…",
+    /// params = "1000,2,8,9" }`, or `kind = "synthetic"` for ground-truth-derived test
+    /// detectors) and optionally `families = [{ name,
     /// buckets = { c_opt, c_ge, c_ua, t_c } }]` to override the default buckets.
     Record(RecordArgs),
     /// Estimate the MDP from the log's training videos, solve it (value iteration,
@@ -110,11 +113,59 @@ struct EvalArgs {
     config: Option<PathBuf>,
 }
 
+/// One HoG variant of a shared feature model (a `HogDetector` borrows its model, so
+/// the detector is made per frame; that costs a table lookup).
+struct HogVariant {
+    model: Arc<frugal_features::FeatureModel>,
+    params: frugal_features::HogParams,
+}
+
+impl FrameDetector for HogVariant {
+    fn detect(
+        &mut self,
+        frame: frugal_runtime::FrameRef<'_>,
+        _ctx: &frugal_policies::variants::FrameContext<'_>,
+        max: usize,
+    ) -> Result<Vec<frugal_runtime::Detection>, String> {
+        let mut det = self
+            .model
+            .detector(self.params)
+            .map_err(|e| e.to_string())?;
+        let mut out = vec![frugal_runtime::Detection::default(); max];
+        let n = frugal_runtime::Detector::detect(&mut det, frame, &mut out)
+            .map_err(|e| e.to_string())?;
+        out.truncate(n);
+        Ok(out)
+    }
+}
+
 fn open_detector(
     v: &frugal_policies::variants::VariantInfo,
     threads: usize,
+    models: &mut HashMap<PathBuf, Arc<frugal_features::FeatureModel>>,
 ) -> frugal_policies::Result<Box<dyn FrameDetector>> {
+    let bad = |path: &Path, e: String| {
+        frugal_policies::PolicyError::invalid(path, format!("variant {}", v.name), e)
+    };
     match &v.source {
+        VariantSource::Hog { model, params } => {
+            let m = match models.get(model) {
+                Some(m) => m.clone(),
+                None => {
+                    let m = Arc::new(
+                        frugal_features::FeatureModel::load(model)
+                            .map_err(|e| bad(model, e.to_string()))?,
+                    );
+                    models.insert(model.clone(), m.clone());
+                    m
+                }
+            };
+            let params: frugal_features::HogParams = params
+                .parse()
+                .map_err(|e: frugal_features::Error| bad(model, e.to_string()))?;
+            m.detector(params).map_err(|e| bad(model, e.to_string()))?;
+            Ok(Box::new(HogVariant { model: m, params }))
+        }
         VariantSource::Onnx { dir } => {
             let det = frugal_models::onnx::OrtDetector::open(dir, threads).map_err(|e| {
                 frugal_policies::PolicyError::invalid(
@@ -152,8 +203,10 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
         PolicyCommand::Record(a) => {
             let ds = Dataset::load(&a.data)?;
             let file = VariantsFile::read(&a.variants)?;
-            let mut set =
-                VariantSet::from_file(&file, &a.variants, |v| open_detector(v, a.threads))?;
+            let mut models = HashMap::new();
+            let mut set = VariantSet::from_file(&file, &a.variants, |v| {
+                open_detector(v, a.threads, &mut models)
+            })?;
             let frames = DatasetFrames::new(&ds);
             let videos = frames.skeleton(&a.splits);
             if videos.is_empty() {
