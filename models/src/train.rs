@@ -399,6 +399,15 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
                 m(3)
             ));
             bar.inc(1);
+            // no terminal (a log file): a plain line now and then instead of the bar
+            if opts.progress && bar.is_hidden() && state.step % 50 == 0 {
+                eprintln!(
+                    "step {}/{total_steps} [{:.0} s] {}",
+                    state.step,
+                    t0.elapsed().as_secs_f64(),
+                    bar.message()
+                );
+            }
         }
         let results = detect_frames(&model, &ds, &val_frames)?;
         let val_map = evaluate(
