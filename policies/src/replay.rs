@@ -395,3 +395,53 @@ pub fn record(
         videos,
     })
 }
+
+/// Median wall time (ms) of `det` on `count` frames spread evenly over `videos`, after
+/// one warm-up call, run on the calling thread.
+pub fn time_detector(
+    det: &mut dyn crate::variants::FrameDetector,
+    frames: &dyn Frames,
+    videos: &[VideoLog],
+    count: usize,
+    max_detections: usize,
+) -> Result<f64> {
+    let all: Vec<(&VideoLog, &FrameLog)> = videos
+        .iter()
+        .flat_map(|v| v.frames.iter().map(move |f| (v, f)))
+        .collect();
+    if all.is_empty() {
+        return Err(PolicyError::invalid(
+            "<videos>",
+            "frames",
+            "no frames to time on",
+        ));
+    }
+    let n = count.clamp(1, all.len());
+    let picks: Vec<usize> = (0..n).map(|i| i * all.len() / n).collect();
+    let mut times = Vec::with_capacity(n);
+    for (k, &i) in std::iter::once(&picks[0]).chain(&picks).enumerate() {
+        let (video, f) = all[i];
+        let img = frames.load(video.id, f.index)?;
+        let truth: Vec<(ClassId, BBox)> = f.truth.iter().map(|d| (d.class, d.bbox())).collect();
+        let ctx = FrameContext {
+            video: video.id,
+            index: f.index,
+            clutter: video.clutter,
+            light: video.light,
+            truth: &truth,
+        };
+        let t0 = std::time::Instant::now();
+        det.detect(img.view(), &ctx, max_detections)
+            .map_err(|message| PolicyError::Detector {
+                variant: "<timing>".into(),
+                video: video.id,
+                frame: f.index,
+                message,
+            })?;
+        if k > 0 {
+            times.push(t0.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    times.sort_by(f64::total_cmp);
+    Ok(times[times.len() / 2])
+}

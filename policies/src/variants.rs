@@ -322,8 +322,10 @@ pub struct VariantEntry {
     pub name: String,
     /// Its family's name.
     pub family: String,
-    /// Measured median latency per frame, ms (`> 0`).
-    pub latency_ms: f64,
+    /// Measured median latency per frame, ms (`> 0`); when absent, `policy record`
+    /// times the detector itself (one thread, median over sample frames).
+    #[serde(default)]
+    pub latency_ms: Option<f64>,
     /// Where the detector comes from.
     pub source: VariantSource,
 }
@@ -382,6 +384,16 @@ impl VariantsFile {
     /// Families and variants (cheapest first, relative costs filled in), checked;
     /// `path` names the file in errors.
     pub fn resolve(&self, path: &Path) -> Result<(Vec<FamilyInfo>, Vec<VariantInfo>)> {
+        self.resolve_with(path, &[])
+    }
+
+    /// As [`VariantsFile::resolve`], with `measured[i]` standing in for variant `i`'s
+    /// missing latency.
+    pub fn resolve_with(
+        &self,
+        path: &Path,
+        measured: &[Option<f64>],
+    ) -> Result<(Vec<FamilyInfo>, Vec<VariantInfo>)> {
         if self.variants.is_empty() {
             return Err(PolicyError::invalid(path, "variants", "no variants"));
         }
@@ -389,11 +401,15 @@ impl VariantsFile {
         let mut variants = Vec::new();
         for (i, v) in self.variants.iter().enumerate() {
             let field = format!("variants[{i}] ({})", v.name);
-            if !(v.latency_ms.is_finite() && v.latency_ms > 0.0) {
+            let latency = v
+                .latency_ms
+                .or(measured.get(i).copied().flatten())
+                .unwrap_or(f64::NAN);
+            if !(latency.is_finite() && latency > 0.0) {
                 return Err(PolicyError::invalid(
                     path,
                     field,
-                    format!("latency_ms must be > 0, got {}", v.latency_ms),
+                    format!("latency_ms must be given and > 0, got {latency}"),
                 ));
             }
             if self.variants[..i].iter().any(|o| o.name == v.name) {
@@ -424,7 +440,7 @@ impl VariantsFile {
             variants.push(VariantInfo {
                 name: v.name.clone(),
                 family,
-                latency_ms: v.latency_ms,
+                latency_ms: latency,
                 relative_cost: 1.0,
                 source: v.source.clone(),
             });
@@ -463,23 +479,56 @@ impl VariantSet {
     }
 
     /// The set of a variants file: synthetic detectors are built here, every other
-    /// kind (ONNX, HoG) by the caller through `open`.
+    /// kind (ONNX, HoG) by the caller through `open`. A variant without a latency is
+    /// timed by `time` (median ms per frame).
     pub fn from_file(
         file: &VariantsFile,
         path: &Path,
         mut open: impl FnMut(&VariantInfo) -> Result<Box<dyn FrameDetector>>,
+        mut time: impl FnMut(&str, &mut dyn FrameDetector) -> Result<f64>,
     ) -> Result<Self> {
-        let (families, variants) = file.resolve(path)?;
+        let mut detectors = Vec::with_capacity(file.variants.len());
+        let mut measured = Vec::with_capacity(file.variants.len());
+        for entry in &file.variants {
+            let info = VariantInfo {
+                name: entry.name.clone(),
+                family: 0,
+                latency_ms: entry.latency_ms.unwrap_or(f64::NAN),
+                relative_cost: 1.0,
+                source: entry.source.clone(),
+            };
+            let mut det = match &info.source {
+                VariantSource::Synthetic(spec) => {
+                    Box::new(SyntheticDetector(spec.clone())) as Box<dyn FrameDetector>
+                }
+                VariantSource::Onnx { .. } | VariantSource::Hog { .. } => open(&info)?,
+            };
+            measured.push(match entry.latency_ms {
+                Some(_) => None,
+                None => Some(time(&entry.name, det.as_mut())?),
+            });
+            detectors.push(det);
+        }
+        let (families, variants) = file.resolve_with(path, &measured)?;
+        // `resolve_with` sorts; pair detectors with their variants by name.
+        let mut named: Vec<(String, Box<dyn FrameDetector>)> = file
+            .variants
+            .iter()
+            .map(|v| v.name.clone())
+            .zip(detectors)
+            .collect();
         let detectors = variants
             .iter()
-            .map(|v| match &v.source {
-                VariantSource::Synthetic(spec) => {
-                    Ok(Box::new(SyntheticDetector(spec.clone())) as Box<dyn FrameDetector>)
-                }
-                VariantSource::Onnx { .. } | VariantSource::Hog { .. } => open(v),
+            .map(|v| {
+                let i = named.iter().position(|(n, _)| *n == v.name).unwrap_or(0);
+                named.swap_remove(i).1
             })
-            .collect::<Result<Vec<_>>>()?;
-        Ok(Self::new(families, variants, detectors))
+            .collect();
+        Ok(Self {
+            families,
+            variants,
+            detectors,
+        })
     }
 
     /// The bucket edges of variant `v`.

@@ -10,7 +10,7 @@ use anyhow::Context;
 use clap::{Args, Subcommand};
 use frugal_data::{Dataset, Split};
 use frugal_policies::eval::EvalConfig;
-use frugal_policies::replay::{DEFAULT_MAX_DETECTIONS, DatasetFrames, record};
+use frugal_policies::replay::{DEFAULT_MAX_DETECTIONS, DatasetFrames, record, time_detector};
 use frugal_policies::report::{evaluate_and_write, policy_table, score_table, train_and_write};
 use frugal_policies::variants::{FrameDetector, RuntimeDetector, VariantSource, VariantsFile};
 use frugal_policies::{PolicyConfig, ReplayLog, TrainedPolicy, VariantSet};
@@ -65,6 +65,9 @@ struct RecordArgs {
     /// ONNX Runtime intra-op threads per variant.
     #[arg(long, default_value_t = 1)]
     threads: usize,
+    /// Frames to time a variant on when the variants file gives no latency.
+    #[arg(long, default_value_t = 15)]
+    time_frames: usize,
     /// Hide the progress bar.
     #[arg(long)]
     quiet: bool,
@@ -204,14 +207,24 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
             let ds = Dataset::load(&a.data)?;
             let file = VariantsFile::read(&a.variants)?;
             let mut models = HashMap::new();
-            let mut set = VariantSet::from_file(&file, &a.variants, |v| {
-                open_detector(v, a.threads, &mut models)
-            })?;
             let frames = DatasetFrames::new(&ds);
             let videos = frames.skeleton(&a.splits);
             if videos.is_empty() {
                 anyhow::bail!("{}: no videos in splits {:?}", a.data.display(), a.splits);
             }
+            let mut set = VariantSet::from_file(
+                &file,
+                &a.variants,
+                |v| open_detector(v, a.threads, &mut models),
+                |name, det| {
+                    let ms = time_detector(det, &frames, &videos, a.time_frames, a.max_detections)?;
+                    println!(
+                        "timed {name}: median {ms:.3} ms/frame over {} frames",
+                        a.time_frames
+                    );
+                    Ok(ms)
+                },
+            )?;
             let log = record(
                 &mut set,
                 &frames,
