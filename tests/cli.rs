@@ -1,2 +1,6 @@
 //! End-to-end tests of the `frugal` CLI on tiny configurations, run in process through
 //! [`frugal::run`]. One module per pipeline stage, in `tests/cli/`.
+#[path = "cli/train.rs"]
+mod train;
+#[path = "cli/policy.rs"]
+mod policy;
