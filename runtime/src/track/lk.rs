@@ -88,43 +88,59 @@ fn sample_patch(img: &GrayImage<'_>, x0: f32, y0: f32, w: usize, h: usize, out: 
     }
 }
 
-/// The template of one point at one level: intensities and Scharr gradients over the
-/// window, and the inverse of the 2×2 gradient matrix.
-struct Template {
+/// Scratch buffers of one Lucas-Kanade solve (≈ 9 KB): the template's intensities and
+/// Scharr gradients, the sampled window and the template patch. Keeping one alive
+/// (the [`Tracker`](super::Tracker) does) spares re-initialising them per point.
+#[derive(Clone, Debug)]
+pub struct LkScratch {
+    patch: [f32; MAX_PATCH * MAX_PATCH],
     i: [f32; MAX_WIN * MAX_WIN],
     ix: [f32; MAX_WIN * MAX_WIN],
     iy: [f32; MAX_WIN * MAX_WIN],
-    inv: [f32; 3],
+    j: [f32; MAX_WIN * MAX_WIN],
 }
 
-impl Template {
-    /// Builds the template around `p`; `None` when the gradient matrix is too weak.
-    fn new(img: &GrayImage<'_>, p: Point, r: usize, min_eigen: f32) -> Option<Self> {
-        let win = 2 * r + 1;
-        let side = win + 2;
-        let mut patch = [0f32; MAX_PATCH * MAX_PATCH];
-        let rf = r as f32;
-        sample_patch(
-            img,
-            p.x - rf - 1.0,
-            p.y - rf - 1.0,
-            side,
-            side,
-            patch.get_mut(..side * side)?,
-        );
-        let mut t = Template {
+impl Default for LkScratch {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl LkScratch {
+    /// Zeroed buffers.
+    pub const fn new() -> Self {
+        Self {
+            patch: [0.0; MAX_PATCH * MAX_PATCH],
             i: [0.0; MAX_WIN * MAX_WIN],
             ix: [0.0; MAX_WIN * MAX_WIN],
             iy: [0.0; MAX_WIN * MAX_WIN],
-            inv: [0.0; 3],
-        };
+            j: [0.0; MAX_WIN * MAX_WIN],
+        }
+    }
+
+    /// Builds the template around `p` (intensities and Scharr gradients over the
+    /// window) and returns the inverse of its 2×2 gradient matrix as `[g11, g12, g22]`;
+    /// `None` when the matrix is too weak.
+    fn template(
+        &mut self,
+        img: &GrayImage<'_>,
+        p: Point,
+        r: usize,
+        min_eigen: f32,
+    ) -> Option<[f32; 3]> {
+        let win = 2 * r + 1;
+        let side = win + 2;
+        let rf = r as f32;
+        let patch = self.patch.get_mut(..side * side)?;
+        sample_patch(img, p.x - rf - 1.0, p.y - rf - 1.0, side, side, patch);
         let (mut a11, mut a12, mut a22) = (0f32, 0f32, 0f32);
-        let mut rows = patch.get(..side * side)?.chunks_exact(side);
+        let mut rows = patch.chunks_exact(side);
         let (mut up, mut mid) = (rows.next()?, rows.next()?);
-        let mut outs =
-            t.i.chunks_exact_mut(win)
-                .zip(t.ix.chunks_exact_mut(win))
-                .zip(t.iy.chunks_exact_mut(win));
+        let mut outs = self
+            .i
+            .chunks_exact_mut(win)
+            .zip(self.ix.chunks_exact_mut(win))
+            .zip(self.iy.chunks_exact_mut(win));
         for down in rows {
             let ((oi, ox), oy) = outs.next()?;
             let cols = up
@@ -155,14 +171,14 @@ impl Template {
         if min_eig.is_nan() || min_eig < min_eigen || det.is_nan() || det <= f32::EPSILON {
             return None;
         }
-        t.inv = [a22 / det, -a12 / det, a11 / det];
-        Some(t)
+        Some([a22 / det, -a12 / det, a11 / det])
     }
 }
 
 /// Refines `guess` (a position in `next`) so that the window around it matches the
 /// window around `p` in `prev`, both at the same pyramid level. `None` when lost.
 fn track_level(
+    s: &mut LkScratch,
     prev: &GrayImage<'_>,
     next: &GrayImage<'_>,
     p: Point,
@@ -172,20 +188,18 @@ fn track_level(
     let r = prm.win_radius;
     let win = 2 * r + 1;
     let n = win * win;
-    let t = Template::new(prev, p, r, prm.min_eigen)?;
-    let [g11, g12, g22] = t.inv;
+    let [g11, g12, g22] = s.template(prev, p, r, prm.min_eigen)?;
     let mut q = guess;
-    let mut j = [0f32; MAX_WIN * MAX_WIN];
     let rf = r as f32;
     let (wl, hl) = (next.width() as f32, next.height() as f32);
     for _ in 0..prm.max_iters {
         if !(q.x >= -rf && q.y >= -rf && q.x < wl + rf && q.y < hl + rf) {
             return None;
         }
-        let js = j.get_mut(..n)?;
+        let js = s.j.get_mut(..n)?;
         sample_patch(next, q.x - rf, q.y - rf, win, win, js);
         let (mut b1, mut b2) = (0f32, 0f32);
-        for (((jv, iv), gx), gy) in js.iter().zip(&t.i).zip(&t.ix).zip(&t.iy) {
+        for (((jv, iv), gx), gy) in js.iter().zip(&s.i).zip(&s.ix).zip(&s.iy) {
             let d = iv - jv;
             b1 += d * gx;
             b2 += d * gy;
@@ -208,6 +222,18 @@ fn track_level(
 /// fine over `min(prm.levels, prev.levels(), next.levels())` levels. `None` when the
 /// point is lost (weak texture, left the image, diverged).
 pub fn track_point(
+    prev: &Pyramid<'_>,
+    next: &Pyramid<'_>,
+    p: Point,
+    guess: Point,
+    prm: &LkParams,
+) -> Option<Point> {
+    track_point_with(&mut LkScratch::new(), prev, next, p, guess, prm)
+}
+
+/// [`track_point`] with caller-kept scratch buffers.
+pub fn track_point_with(
+    scratch: &mut LkScratch,
     prev: &Pyramid<'_>,
     next: &Pyramid<'_>,
     p: Point,
@@ -238,7 +264,7 @@ pub fn track_point(
             x: pl.x + flow.x,
             y: pl.y + flow.y,
         };
-        match track_level(&prev.level(l)?, &next.level(l)?, pl, g, prm) {
+        match track_level(scratch, &prev.level(l)?, &next.level(l)?, pl, g, prm) {
             Some(q) => {
                 flow = Point {
                     x: q.x - pl.x,

@@ -33,7 +33,7 @@ mod lk;
 
 pub use corners::{Corner, CornerParams, good_features};
 pub use image::{GrayImage, MAX_LEVELS, Pyramid, rgb_to_gray};
-pub use lk::{LkParams, MAX_WIN_RADIUS, track_point};
+pub use lk::{LkParams, LkScratch, MAX_WIN_RADIUS, track_point, track_point_with};
 
 use crate::geom::BBox;
 use core::fmt;
@@ -148,6 +148,7 @@ pub struct Tracker<const MAX_POINTS: usize> {
     scratch: [f32; MAX_POINTS],
     scratch2: [f32; MAX_POINTS],
     corners: [Corner; MAX_POINTS],
+    lk: LkScratch,
 }
 
 const ZERO: Point = Point { x: 0.0, y: 0.0 };
@@ -179,6 +180,7 @@ impl<const MAX_POINTS: usize> Tracker<MAX_POINTS> {
                 pos: ZERO,
                 response: 0.0,
             }; MAX_POINTS],
+            lk: LkScratch::new(),
         }
     }
 
@@ -287,10 +289,10 @@ impl<const MAX_POINTS: usize> Tracker<MAX_POINTS> {
             let Some(p) = self.pts.get(i).copied() else {
                 break;
             };
-            let Some(q) = track_point(prev, next, p, p, &prm.lk) else {
+            let Some(q) = track_point_with(&mut self.lk, prev, next, p, p, &prm.lk) else {
                 continue;
             };
-            let Some(back) = track_point(next, prev, q, q, &prm.lk) else {
+            let Some(back) = track_point_with(&mut self.lk, next, prev, q, q, &prm.lk) else {
                 continue;
             };
             let (ex, ey) = (back.x - p.x, back.y - p.y);
