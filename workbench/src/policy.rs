@@ -65,6 +65,9 @@ struct RecordArgs {
     /// ONNX Runtime intra-op threads per variant.
     #[arg(long, default_value_t = 1)]
     threads: usize,
+    /// Keep at most this many videos per (split, clutter, light) combination.
+    #[arg(long)]
+    per_combo: Option<usize>,
     /// Frames to time a variant on when the variants file gives no latency.
     #[arg(long, default_value_t = 15)]
     time_frames: usize,
@@ -208,7 +211,17 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
             let file = VariantsFile::read(&a.variants)?;
             let mut models = HashMap::new();
             let frames = DatasetFrames::new(&ds);
-            let videos = frames.skeleton(&a.splits);
+            let mut videos = frames.skeleton(&a.splits);
+            if let Some(k) = a.per_combo {
+                let mut seen: HashMap<(Split, String, String), usize> = HashMap::new();
+                videos.retain(|v| {
+                    let n = seen
+                        .entry((v.split, v.clutter.name().into(), v.light.name().into()))
+                        .or_insert(0);
+                    *n += 1;
+                    *n <= k
+                });
+            }
             if videos.is_empty() {
                 anyhow::bail!("{}: no videos in splits {:?}", a.data.display(), a.splits);
             }
