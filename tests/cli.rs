@@ -4,3 +4,5 @@
 mod train;
 #[path = "cli/policy.rs"]
 mod policy;
+#[path = "cli/data.rs"]
+mod data;

@@ -418,6 +418,14 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), DataError> {
     std::fs::create_dir_all(&dir).map_err(|e| DataError::io(&dir, e))?;
     let mut tmp = tempfile::NamedTempFile::new_in(&dir).map_err(|e| DataError::io(&dir, e))?;
     tmp.write_all(bytes).map_err(|e| DataError::io(path, e))?;
+    // Temporary files are created private (0600); results are ordinary files.
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        tmp.as_file()
+            .set_permissions(std::fs::Permissions::from_mode(0o644))
+            .map_err(|e| DataError::io(path, e))?;
+    }
     tmp.persist(path)
         .map_err(|e| DataError::io(path, e.error))?;
     Ok(())
@@ -462,6 +470,12 @@ impl PartialDir {
     /// Move the finished folder to `out`, replacing what was there.
     pub fn commit(self) -> Result<(), DataError> {
         let partial = self.dir.keep();
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&partial, std::fs::Permissions::from_mode(0o755))
+                .map_err(|e| DataError::io(&partial, e))?;
+        }
         if self.out.exists() {
             let old = partial.with_extension("old");
             std::fs::rename(&self.out, &old).map_err(|e| DataError::io(&self.out, e))?;

@@ -146,8 +146,12 @@ struct SourceImage {
     /// Annotation file and record, for errors.
     ann_file: PathBuf,
     record: String,
+    /// The source's image id (COCO), kept as the frame id.
+    id: Option<u64>,
     image: PathBuf,
     declared: Option<(u32, u32)>,
+    /// Scenario levels carried by a frugal COCO export.
+    scenario: Option<(Clutter, Light)>,
     video: Option<u32>,
     index: Option<u32>,
     split: Option<Split>,
@@ -186,6 +190,10 @@ fn read_coco(opts: &ImportOptions, root: &Path) -> Result<Vec<SourceImage>, Data
     struct SplitOnly {
         #[serde(default)]
         split: Option<String>,
+        #[serde(default)]
+        clutter: Option<Clutter>,
+        #[serde(default)]
+        light: Option<Light>,
     }
     #[derive(Deserialize)]
     struct Images {
@@ -213,8 +221,10 @@ fn read_coco(opts: &ImportOptions, root: &Path) -> Result<Vec<SourceImage>, Data
         out.push(SourceImage {
             ann_file: path.clone(),
             record,
+            id: Some(img.id),
             image: root.join(&img.file_name),
             declared: Some((img.width, img.height)),
+            scenario: ex.clutter.zip(ex.light),
             video: img.video,
             index: img.index,
             split,
@@ -310,8 +320,10 @@ fn read_voc(opts: &ImportOptions, root: &Path) -> Result<Vec<SourceImage>, DataE
         out.push(SourceImage {
             ann_file: file.clone(),
             record: format!("filename {}", ann.filename),
+            id: None,
             image: root.join(&ann.filename),
             declared: ann.size.map(|s| (s.width, s.height)),
+            scenario: None,
             video: None,
             index: None,
             split: None,
@@ -380,8 +392,10 @@ fn read_gtsdb(opts: &ImportOptions, root: &Path) -> Result<Vec<SourceImage>, Dat
             out.push(SourceImage {
                 ann_file: path.clone(),
                 record: record.clone(),
+                id: None,
                 image: root.join(first),
                 declared: None,
+                scenario: None,
                 video: None,
                 index: None,
                 split: None,
@@ -458,19 +472,22 @@ pub fn import(opts: &ImportOptions, out: &Path) -> Result<Dataset, DataError> {
         .par_iter()
         .zip(plan.par_iter())
         .enumerate()
-        .map(|(id, (s, &(video, index, split)))| convert(s, &dir, id as u64, video, index, split))
+        .map(|(n, (s, &(video, index, split)))| {
+            convert(s, &dir, s.id.unwrap_or(n as u64), video, index, split)
+        })
         .collect();
     let mut frames = Vec::with_capacity(converted.len());
     for f in converted {
         frames.push(f?);
     }
     let mut videos: BTreeMap<u32, VideoMeta> = BTreeMap::new();
-    for f in &frames {
+    for (f, s) in frames.iter().zip(&sources) {
+        let (clutter, light) = s.scenario.unwrap_or((opts.clutter, opts.light));
         let v = videos.entry(f.video).or_insert(VideoMeta {
             id: f.video,
             seed: 0,
-            clutter: opts.clutter,
-            light: opts.light,
+            clutter,
+            light,
             split: f.split,
             frames: 0,
         });
@@ -580,10 +597,11 @@ pub fn export_coco(ds: &Dataset, split: Option<Split>, out: &Path) -> Result<Pat
                 .filter(|f| split.is_none_or(|s| f.split == s)),
         ) {
             if let Some(obj) = img.as_object_mut() {
-                obj.insert(
-                    "split".into(),
-                    serde_json::Value::String(f.split.name().into()),
-                );
+                obj.insert("split".into(), f.split.name().into());
+                if let Some(v) = ds.video(f.video) {
+                    obj.insert("clutter".into(), v.clutter.name().into());
+                    obj.insert("light".into(), v.light.name().into());
+                }
             }
         }
     }

@@ -31,6 +31,7 @@ pub mod generate;
 pub mod import;
 pub mod raster;
 pub mod scene;
+pub mod show;
 pub mod sign;
 pub mod summary;
 pub mod video;

@@ -202,6 +202,12 @@ impl Canvas {
 /// Coverage of `shape` at the centre of each pixel of a `w × h` grid (for masks).
 pub fn coverage(shape: &Shape, w: usize, h: usize) -> Vec<f32> {
     let mut out = vec![0.0; w * h];
+    for_each_coverage(shape, w, h, |x, y, c| out[y * w + x] = c);
+    out
+}
+
+/// Call `f(x, y, coverage)` for every pixel of a `w × h` grid that `shape` touches.
+pub fn for_each_coverage(shape: &Shape, w: usize, h: usize, mut f: impl FnMut(usize, usize, f32)) {
     let (lo, hi) = shape.bounds();
     let x0 = (lo.0 - 1.0).floor().max(0.0) as usize;
     let y0 = (lo.1 - 1.0).floor().max(0.0) as usize;
@@ -209,10 +215,12 @@ pub fn coverage(shape: &Shape, w: usize, h: usize) -> Vec<f32> {
     let y1 = ((hi.1 + 1.0).ceil().max(0.0) as usize).min(h);
     for y in y0..y1 {
         for x in x0..x1 {
-            out[y * w + x] = (0.5 - shape.dist((x as f32 + 0.5, y as f32 + 0.5))).clamp(0.0, 1.0);
+            let c = (0.5 - shape.dist((x as f32 + 0.5, y as f32 + 0.5))).clamp(0.0, 1.0);
+            if c > 0.0 {
+                f(x, y, c);
+            }
         }
     }
-    out
 }
 
 #[cfg(test)]

@@ -169,10 +169,16 @@ fn coco_export_then_import_round_trips() {
     .expect("import");
     assert_eq!(objects(&back), objects(ds));
     assert_eq!(back.videos.len(), ds.videos.len());
+    for (a, b) in ds.videos.iter().zip(&back.videos) {
+        assert_eq!(
+            (a.id, a.clutter, a.light, a.split, a.frames),
+            (b.id, b.clutter, b.light, b.split, b.frames)
+        );
+    }
     for (a, b) in ds.frames.iter().zip(&back.frames) {
         assert_eq!(
-            (a.video, a.index, a.split, &a.file),
-            (b.video, b.index, b.split, &b.file)
+            (a.id, a.video, a.index, a.split, &a.file),
+            (b.id, b.video, b.index, b.split, &b.file)
         );
     }
     assert_same_pixels(ds, &back);

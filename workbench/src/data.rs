@@ -2,7 +2,9 @@
 //! import real datasets and export to COCO.
 use anyhow::Context;
 use clap::{Args, Subcommand, ValueEnum};
-use frugal_data::{Dataset, GenConfig, Split};
+use frugal_data::{
+    ClassMap, Clutter, Dataset, Format, GenConfig, ImportOptions, Light, Split, show,
+};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `frugal data`.
@@ -29,6 +31,124 @@ enum DataCommand {
         #[arg(long)]
         json: bool,
     },
+    /// Draw boxes and class labels onto frames (PNG) so a person can check them, and/or
+    /// make a contact sheet: a grid of annotated thumbnails across every scenario level.
+    Show(ShowArgs),
+    /// Import a real dataset (COCO JSON, Pascal VOC XML, GTSDB-style CSV) into frugal's
+    /// dataset form: PNG frames, COCO per split, manifest.
+    ///
+    /// Source classes are matched to frugal's class names or codes (e.g. `stop`, `B5`),
+    /// or mapped with --class-map; unmapped classes are an error unless
+    /// --drop-unmapped. Images without video information become one video each and are
+    /// split by a fixed hash of the video id unless --split is given.
+    Import(ImportArgs),
+    /// Export a dataset as a self-contained COCO folder: annotations.json (category_id =
+    /// class id + 1; images carry video, index, split) and the frames.
+    Export {
+        /// Output format.
+        #[arg(long, value_enum, default_value = "coco")]
+        format: ExportFormat,
+        /// The dataset folder.
+        dir: PathBuf,
+        /// Output folder.
+        #[arg(long)]
+        out: PathBuf,
+        /// Export only this split (train, val or test).
+        #[arg(long, value_parser = parse_split)]
+        split: Option<Split>,
+    },
+}
+
+/// Options of `frugal data show`.
+#[derive(Args, Debug)]
+struct ShowArgs {
+    /// The dataset folder.
+    dir: PathBuf,
+    /// Write annotated frames into this folder.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Only frames of this split (train, val or test).
+    #[arg(long, value_parser = parse_split)]
+    split: Option<Split>,
+    /// Only frames of this video.
+    #[arg(long)]
+    video: Option<u32>,
+    /// How many frames to write (spread evenly over the selection).
+    #[arg(long, default_value_t = 12)]
+    frames: usize,
+    /// Write a contact sheet to this PNG file.
+    #[arg(long)]
+    sheet: Option<PathBuf>,
+    /// Contact sheet: thumbnails per row.
+    #[arg(long, default_value_t = 4)]
+    cols: u32,
+    /// Contact sheet: thumbnail size WxH.
+    #[arg(long, default_value = "240x135", value_parser = parse_size)]
+    thumb: (u32, u32),
+    /// Contact sheet: frames per scenario level (clutter × light).
+    #[arg(long, default_value_t = 2)]
+    per_level: u32,
+}
+
+/// Options of `frugal data import`.
+#[derive(Args, Debug)]
+struct ImportArgs {
+    /// Source format.
+    #[arg(long, value_enum)]
+    format: ImportFormat,
+    /// The annotation file (COCO JSON, GTSDB CSV) or VOC XML file / folder of XML files.
+    input: PathBuf,
+    /// Output dataset folder.
+    #[arg(long)]
+    out: PathBuf,
+    /// Folder the image paths are relative to (default: the annotation file's folder).
+    #[arg(long)]
+    images: Option<PathBuf>,
+    /// JSON or TOML map from source class (name or numeric id) to frugal class name or
+    /// code, e.g. {"14": "stop", "33": "turn_right"}.
+    #[arg(long)]
+    class_map: Option<PathBuf>,
+    /// Drop objects whose class is not mapped instead of failing.
+    #[arg(long)]
+    drop_unmapped: bool,
+    /// Put every image into this split (train, val or test).
+    #[arg(long, value_parser = parse_split)]
+    split: Option<Split>,
+    /// Clutter level recorded for the imported videos.
+    #[arg(long, value_enum, default_value = "medium")]
+    clutter: ClutterArg,
+    /// Light level recorded for the imported videos.
+    #[arg(long, value_enum, default_value = "normal")]
+    light: LightArg,
+}
+
+#[derive(ValueEnum, Debug, Clone, Copy)]
+enum ImportFormat {
+    /// COCO JSON.
+    Coco,
+    /// Pascal VOC XML.
+    Voc,
+    /// GTSDB-style CSV `file;x1;y1;x2;y2;class`.
+    Gtsdb,
+}
+
+#[derive(ValueEnum, Debug, Clone, Copy)]
+enum ExportFormat {
+    /// COCO JSON.
+    Coco,
+}
+
+#[derive(ValueEnum, Debug, Clone, Copy)]
+enum ClutterArg {
+    Low,
+    Medium,
+    High,
+}
+
+#[derive(ValueEnum, Debug, Clone, Copy)]
+enum LightArg {
+    Normal,
+    Low,
 }
 
 /// Generator options; each flag overrides the config file, which overrides the
@@ -117,6 +237,51 @@ pub fn run(args: DataArgs) -> anyhow::Result<()> {
             print!("{}", frugal_data::summary(&ds));
             Ok(())
         }
+        DataCommand::Show(a) => show(a),
+        DataCommand::Import(a) => {
+            let mut opts = ImportOptions::new(
+                match a.format {
+                    ImportFormat::Coco => Format::Coco,
+                    ImportFormat::Voc => Format::Voc,
+                    ImportFormat::Gtsdb => Format::Gtsdb,
+                },
+                &a.input,
+            );
+            opts.images = a.images;
+            if let Some(map) = &a.class_map {
+                opts.class_map = ClassMap::from_file(map)?;
+            }
+            opts.drop_unmapped = a.drop_unmapped;
+            opts.split = a.split;
+            opts.clutter = match a.clutter {
+                ClutterArg::Low => Clutter::Low,
+                ClutterArg::Medium => Clutter::Medium,
+                ClutterArg::High => Clutter::High,
+            };
+            opts.light = match a.light {
+                LightArg::Normal => Light::Normal,
+                LightArg::Low => Light::Low,
+            };
+            let ds = frugal_data::import(&opts, &a.out)?;
+            println!(
+                "imported {} frames into {}",
+                ds.frames.len(),
+                a.out.display()
+            );
+            print!("{}", frugal_data::summary(&ds));
+            Ok(())
+        }
+        DataCommand::Export {
+            format: ExportFormat::Coco,
+            dir,
+            out,
+            split,
+        } => {
+            let ds = Dataset::load(&dir)?;
+            let json = frugal_data::export_coco(&ds, split, &out)?;
+            println!("wrote {}", json.display());
+            Ok(())
+        }
         DataCommand::Summary { dir, json } => {
             let ds = Dataset::load(&dir)?;
             let s = frugal_data::summary(&ds);
@@ -128,6 +293,66 @@ pub fn run(args: DataArgs) -> anyhow::Result<()> {
             Ok(())
         }
     }
+}
+
+fn show(a: ShowArgs) -> anyhow::Result<()> {
+    if a.out.is_none() && a.sheet.is_none() {
+        anyhow::bail!(
+            "nothing to do: give --out DIR for annotated frames and/or --sheet FILE for a contact sheet"
+        );
+    }
+    let ds = Dataset::load(&a.dir)?;
+    if let Some(out) = &a.out {
+        let selected: Vec<_> = ds
+            .frames
+            .iter()
+            .filter(|f| {
+                a.split.is_none_or(|s| f.split == s) && a.video.is_none_or(|v| f.video == v)
+            })
+            .collect();
+        if selected.is_empty() {
+            anyhow::bail!("{}: no frames match the selection", a.dir.display());
+        }
+        let n = a.frames.clamp(1, selected.len());
+        std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+        for k in 0..n {
+            let f = selected[k * selected.len() / n];
+            let img = show::annotated_frame(&ds, f)?;
+            let path = out.join(format!("v{:04}_{:06}.png", f.video, f.index));
+            show::save_png(&img, &path)?;
+        }
+        println!("wrote {n} annotated frames to {}", out.display());
+    }
+    if let Some(sheet) = &a.sheet {
+        let opts = show::SheetOptions {
+            cols: a.cols,
+            thumb_w: a.thumb.0,
+            thumb_h: a.thumb.1,
+            per_level: a.per_level,
+        };
+        let img = show::contact_sheet(&ds, &opts)?;
+        show::save_png(&img, sheet)?;
+        println!(
+            "wrote contact sheet {} ({}x{})",
+            sheet.display(),
+            img.width(),
+            img.height()
+        );
+    }
+    Ok(())
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once('x')
+        .ok_or_else(|| format!("expected WxH, got {s:?}"))?;
+    let p = |v: &str| {
+        v.parse::<u32>()
+            .ok()
+            .filter(|&v| v >= 16)
+            .ok_or_else(|| format!("bad size {s:?}"))
+    };
+    Ok((p(w)?, p(h)?))
 }
 
 /// Parse a split name (for `--split`).
