@@ -3,7 +3,7 @@
 //! none). Prints tables; writes the model to `<data>/../features-model.json`.
 //!
 //! `cargo run --release -p frugal-features --example features_eval -- DATA_DIR
-//!  [TRAIN_STRIDE] [TEST_STRIDE] [PARAMS...]`
+//!  [TRAIN_STRIDE] [TEST_STRIDE] [PARAMS...]` (train stride 0: proposal recall only)
 
 use frugal_data::{GenConfig, Split};
 use frugal_features::data::{class_names, load_frames};
@@ -47,6 +47,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("| proposals | recall |\n|---|---|");
     for (n, r) in &recall {
         println!("| {n} | {r:.3} |");
+    }
+    if train_stride == 0 {
+        return Ok(()); // proposals only
     }
     let trainf = load_frames(&ds, Split::Train, train_stride, usize::MAX)?;
     let t = Instant::now();
