@@ -6,3 +6,5 @@ mod train;
 mod policy;
 #[path = "cli/data.rs"]
 mod data;
+#[path = "cli/fly.rs"]
+mod fly;

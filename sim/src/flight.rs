@@ -136,7 +136,9 @@ impl Outcome {
     pub fn describe(&self) -> String {
         match self {
             Outcome::Success => "landed at the goal".into(),
-            Outcome::LandedOutsideGoal { cell } => format!("landed at a STOP sign in cell {cell:?}, not the goal"),
+            Outcome::LandedOutsideGoal { cell } => {
+                format!("landed at a STOP sign in cell {cell:?}, not the goal")
+            }
             Outcome::Collision { x, y } => format!("collided with a wall at ({x:.2}, {y:.2}) m"),
             Outcome::TimeLimit { limit_s } => {
                 format!("goal not reached within the {limit_s:.0} s time limit")
@@ -323,7 +325,11 @@ pub fn fly(
 ) -> Result<FlightResult, FlightError> {
     let nav = &config.nav;
     let cam = config.camera;
-    if !(nav.v_max > 0.0 && nav.react_distance > 0.0 && nav.time_limit_s > 0.0 && nav.camera_fps > 0.0) {
+    if !(nav.v_max > 0.0
+        && nav.react_distance > 0.0
+        && nav.time_limit_s > 0.0
+        && nav.camera_fps > 0.0)
+    {
         return Err(FlightError::Config(
             "v_max, react_distance, time_limit_s and camera_fps must be positive".into(),
         ));
@@ -414,7 +420,13 @@ pub fn fly(
                 source,
             })?;
         compute_total += percept.compute_ms;
-        score(&truth, &percept.detections, &mut sign_frames, &mut sign_hits, &mut false_detections);
+        score(
+            &truth,
+            &percept.detections,
+            &mut sign_frames,
+            &mut sign_hits,
+            &mut false_detections,
+        );
         let dt = (percept.compute_ms.max(0.0) / 1e3 * config.device.slowdown).max(min_dt);
         dt_avg = Some(dt_avg.map_or(dt, |a| a * 0.7 + dt * 0.3));
 
@@ -422,13 +434,20 @@ pub fn fly(
         let mut crashed = None;
         let mut remaining = dt.min(nav.time_limit_s - t + 1e-9);
         while remaining > 0.0 {
-            let step = if speed > 0.0 { remaining.min(0.02 / speed) } else { remaining };
+            let step = if speed > 0.0 {
+                remaining.min(0.02 / speed)
+            } else {
+                remaining
+            };
             if mode == Mode::Turning {
                 let diff = wrap(target_yaw - pose.yaw);
                 let turn = (yaw_rate * step).min(diff.abs());
                 pose.yaw = wrap(pose.yaw + turn * diff.signum());
             } else if speed > 0.0 {
-                let (nx, ny) = (pose.x + pose.yaw.cos() * speed * step, pose.y + pose.yaw.sin() * speed * step);
+                let (nx, ny) = (
+                    pose.x + pose.yaw.cos() * speed * step,
+                    pose.y + pose.yaw.sin() * speed * step,
+                );
                 odo += speed * step;
                 pose.x = nx;
                 pose.y = ny;
@@ -578,7 +597,9 @@ pub fn fly(
             });
         }
         if landed {
-            let cell = maze.cell_of(pose.x, pose.y).unwrap_or((usize::MAX, usize::MAX));
+            let cell = maze
+                .cell_of(pose.x, pose.y)
+                .unwrap_or((usize::MAX, usize::MAX));
             outcome = if cell == maze.goal {
                 Outcome::Success
             } else {
@@ -618,7 +639,13 @@ pub fn fly(
 }
 
 /// In-loop detection quality against the renderer's ground truth.
-fn score(truth: &FrameTruth, dets: &[Detection], frames: &mut u64, hits: &mut u64, false_dets: &mut u64) {
+fn score(
+    truth: &FrameTruth,
+    dets: &[Detection],
+    frames: &mut u64,
+    hits: &mut u64,
+    false_dets: &mut u64,
+) {
     let visible: Vec<_> = truth
         .signs
         .iter()
@@ -626,9 +653,10 @@ fn score(truth: &FrameTruth, dets: &[Detection], frames: &mut u64, hits: &mut u6
         .collect();
     if !visible.is_empty() {
         *frames += 1;
-        let found = visible
-            .iter()
-            .any(|s| dets.iter().any(|d| d.class == s.class && d.bbox.iou(&s.bbox) >= 0.5));
+        let found = visible.iter().any(|s| {
+            dets.iter()
+                .any(|d| d.class == s.class && d.bbox.iou(&s.bbox) >= 0.5)
+        });
         if found {
             *hits += 1;
         }
@@ -651,7 +679,11 @@ mod tests {
 
     #[test]
     fn collision_disc_against_cells() {
-        let m = Maze::parse("start 1 1 e\ngoal 1 1\nmap\n###\n#.#\n###\nend\n", Path::new("m")).unwrap();
+        let m = Maze::parse(
+            "start 1 1 e\ngoal 1 1\nmap\n###\n#.#\n###\nend\n",
+            Path::new("m"),
+        )
+        .unwrap();
         assert!(!collides(&m, 4.5, 4.5, 0.25));
         assert!(collides(&m, 3.1, 4.5, 0.25));
         assert!(collides(&m, 5.9, 5.9, 0.25));
@@ -659,10 +691,17 @@ mod tests {
 
     #[test]
     fn start_pose_stays_near_the_start_cell_centre() {
-        let m = Maze::parse("start 1 1 s\ngoal 1 1\nmap\n###\n#.#\n###\nend\n", Path::new("m")).unwrap();
+        let m = Maze::parse(
+            "start 1 1 s\ngoal 1 1\nmap\n###\n#.#\n###\nend\n",
+            Path::new("m"),
+        )
+        .unwrap();
         for seed in 0..20 {
             let p = start_pose(&m, seed);
-            assert!((p.x - 4.5).abs() <= 0.15 + 1e-9 && (p.y - 4.5).abs() <= 0.3 + 1e-9, "{p:?}");
+            assert!(
+                (p.x - 4.5).abs() <= 0.15 + 1e-9 && (p.y - 4.5).abs() <= 0.3 + 1e-9,
+                "{p:?}"
+            );
             assert!((p.yaw - FRAC_PI_2).abs() < 1e-12);
         }
         assert_ne!(start_pose(&m, 1), start_pose(&m, 2));

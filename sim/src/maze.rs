@@ -108,7 +108,8 @@ mod sign_name {
     }
     pub fn deserialize<'de, D: serde::Deserializer<'de>>(de: D) -> Result<Sign, D::Error> {
         let name = <String as serde::Deserialize>::deserialize(de)?;
-        Sign::from_name(&name).ok_or_else(|| serde::de::Error::custom(format!("unknown sign {name}")))
+        Sign::from_name(&name)
+            .ok_or_else(|| serde::de::Error::custom(format!("unknown sign {name}")))
     }
 }
 
@@ -154,7 +155,10 @@ impl WaitZone {
 
 /// The centre of a cell in world metres.
 pub fn cell_center(cell: (usize, usize), cell_size: f64) -> (f64, f64) {
-    ((cell.0 as f64 + 0.5) * cell_size, (cell.1 as f64 + 0.5) * cell_size)
+    (
+        (cell.0 as f64 + 0.5) * cell_size,
+        (cell.1 as f64 + 0.5) * cell_size,
+    )
 }
 
 /// A parsed maze.
@@ -193,7 +197,9 @@ pub struct Maze {
 #[non_exhaustive]
 pub enum LineProblem {
     /// The first word is not a known keyword.
-    #[error("unknown keyword `{0}` (expected name, cell, wall_height, sign_size, light, start, goal, sign, wait or map)")]
+    #[error(
+        "unknown keyword `{0}` (expected name, cell, wall_height, sign_size, light, start, goal, sign, wait or map)"
+    )]
     UnknownKeyword(String),
     /// Too few or too many values after the keyword.
     #[error("`{keyword}` takes {expected}, got {got} value(s)")]
@@ -269,7 +275,9 @@ pub enum LineProblem {
         side: Dir,
     },
     /// Board does not fit between floor and ceiling.
-    #[error("sign centre height {height} m puts the {size} m board outside floor..ceiling ({wall_height} m)")]
+    #[error(
+        "sign centre height {height} m puts the {size} m board outside floor..ceiling ({wall_height} m)"
+    )]
     SignHeight {
         /// Given centre height.
         height: f64,
@@ -510,7 +518,9 @@ impl Maze {
                     let duty = positive(args[4], "duty fraction in (0, 1]", 1e-6, 1.0)
                         .map_err(|p| err(ln, p))?;
                     let phase = match args.get(5) {
-                        Some(p) => positive(p, "phase in seconds", 0.0, 1e6).map_err(|pr| err(ln, pr))?,
+                        Some(p) => {
+                            positive(p, "phase in seconds", 0.0, 1e6).map_err(|pr| err(ln, pr))?
+                        }
                         None => 0.0,
                     };
                     zones.push((
@@ -686,7 +696,10 @@ impl Maze {
 
     /// True when the world point `(x, y)` (metres) lies in a wall cell.
     pub fn is_wall_at(&self, x: f64, y: f64) -> bool {
-        self.is_wall((x / self.cell).floor() as i64, (y / self.cell).floor() as i64)
+        self.is_wall(
+            (x / self.cell).floor() as i64,
+            (y / self.cell).floor() as i64,
+        )
     }
 
     /// The cell containing world point `(x, y)`, if inside the map.
@@ -739,7 +752,10 @@ fn parse_cell(c: &str, r: &str) -> Result<(usize, usize), LineProblem> {
             value: s.to_owned(),
         })
     };
-    Ok((one(c, "column (0-based integer)")?, one(r, "row (0-based integer)")?))
+    Ok((
+        one(c, "column (0-based integer)")?,
+        one(r, "row (0-based integer)")?,
+    ))
 }
 
 fn parse_dir(s: &str) -> Result<Dir, LineProblem> {
@@ -775,10 +791,16 @@ end
     #[test]
     fn parses_every_keyword() {
         let m = parse(OK).unwrap();
-        assert_eq!((m.name.as_str(), m.width, m.height, m.cell), ("tiny", 5, 3, 2.0));
+        assert_eq!(
+            (m.name.as_str(), m.width, m.height, m.cell),
+            ("tiny", 5, 3, 2.0)
+        );
         assert_eq!((m.start, m.heading, m.goal), ((1, 1), Dir::East, (3, 1)));
         assert_eq!(m.signs.len(), 2);
-        assert_eq!((m.signs[1].sign, m.signs[1].mount, m.signs[1].line), (Sign::Wait, Mount::Flag, 6));
+        assert_eq!(
+            (m.signs[1].sign, m.signs[1].mount, m.signs[1].line),
+            (Sign::Wait, Mount::Flag, 6)
+        );
         assert_eq!(m.zones[0].phase, 1.0);
         assert!(m.is_wall(0, 1) && !m.is_wall(1, 1) && m.is_wall(-1, 1) && m.is_wall(9, 9));
         assert!(m.goal_connected());
@@ -795,7 +817,10 @@ end
         };
         let a = z.pedestrian_at(0.0, 0.0, 2.0).unwrap();
         let b = z.pedestrian_at(3.99, 0.0, 2.0).unwrap();
-        assert!((a.0 - 5.0).abs() < 1e-9 && (a.1 - 0.0).abs() < 1e-9, "{a:?}");
+        assert!(
+            (a.0 - 5.0).abs() < 1e-9 && (a.1 - 0.0).abs() < 1e-9,
+            "{a:?}"
+        );
         assert!(b.1 > 5.9, "{b:?}");
         assert!(z.pedestrian_at(5.0, 0.0, 2.0).is_none());
         let c = z.pedestrian_at(10.0, 0.0, 2.0).unwrap();
@@ -804,22 +829,54 @@ end
 
     #[test]
     fn malformed_lines_name_the_file_and_line() {
-        let cases: [(&str, usize, fn(&LineProblem) -> bool); 9] = [
-            ("flyto 1 1\n", 1, |p| matches!(p, LineProblem::UnknownKeyword(_))),
-            ("cell -2\n", 1, |p| matches!(p, LineProblem::BadValue { .. })),
-            ("\n\nstart 1 1\n", 3, |p| matches!(p, LineProblem::Arity { keyword: "start", .. })),
-            ("start 1 1 up\n", 1, |p| matches!(p, LineProblem::BadValue { .. })),
-            ("sign yield 1 1 n 1\n", 1, |p| matches!(p, LineProblem::UnknownSign(_))),
-            ("map\n###\n#x#\n###\nend\n", 3, |p| matches!(p, LineProblem::MapChar { ch: 'x', col: 1 })),
-            ("map\n###\n#.\n###\nend\n", 3, |p| matches!(p, LineProblem::RaggedRow { got: 2, expected: 3 })),
-            ("light dark\n", 1, |p| matches!(p, LineProblem::BadValue { .. })),
+        type Check = fn(&LineProblem) -> bool;
+        let cases: [(&str, usize, Check); 9] = [
+            ("flyto 1 1\n", 1, |p| {
+                matches!(p, LineProblem::UnknownKeyword(_))
+            }),
+            ("cell -2\n", 1, |p| {
+                matches!(p, LineProblem::BadValue { .. })
+            }),
+            ("\n\nstart 1 1\n", 3, |p| {
+                matches!(
+                    p,
+                    LineProblem::Arity {
+                        keyword: "start",
+                        ..
+                    }
+                )
+            }),
+            ("start 1 1 up\n", 1, |p| {
+                matches!(p, LineProblem::BadValue { .. })
+            }),
+            ("sign yield 1 1 n 1\n", 1, |p| {
+                matches!(p, LineProblem::UnknownSign(_))
+            }),
+            ("map\n###\n#x#\n###\nend\n", 3, |p| {
+                matches!(p, LineProblem::MapChar { ch: 'x', col: 1 })
+            }),
+            ("map\n###\n#.\n###\nend\n", 3, |p| {
+                matches!(
+                    p,
+                    LineProblem::RaggedRow {
+                        got: 2,
+                        expected: 3
+                    }
+                )
+            }),
+            ("light dark\n", 1, |p| {
+                matches!(p, LineProblem::BadValue { .. })
+            }),
             ("map\n###\n", 1, |p| matches!(p, LineProblem::UnclosedMap)),
         ];
         for (text, line, check) in cases {
             let e = parse(text).unwrap_err();
             assert_eq!(e.line(), Some(line), "{text:?}: {e}");
             assert!(check(e.problem().unwrap()), "{text:?}: {e}");
-            assert!(e.to_string().starts_with(&format!("t.maze:{line}: ")), "{e}");
+            assert!(
+                e.to_string().starts_with(&format!("t.maze:{line}: ")),
+                "{e}"
+            );
         }
     }
 
@@ -827,16 +884,37 @@ end
     fn placement_errors_point_at_the_declaring_line() {
         let sub = |from: &str, to: &str| OK.replace(from, to);
         let e = parse(&sub("goal 3 1", "goal 0 1")).unwrap_err();
-        assert_eq!((e.line(), e.problem()), (Some(4), Some(&LineProblem::InWall { col: 0, row: 1 })));
+        assert_eq!(
+            (e.line(), e.problem()),
+            (Some(4), Some(&LineProblem::InWall { col: 0, row: 1 }))
+        );
         let e = parse(&sub("start 1 1 east", "start 7 1 east")).unwrap_err();
-        assert!(matches!(e.problem(), Some(LineProblem::OutOfMap { col: 7, .. })), "{e}");
+        assert!(
+            matches!(e.problem(), Some(LineProblem::OutOfMap { col: 7, .. })),
+            "{e}"
+        );
         let e = parse(&sub("sign stop 3 1 e 1.2", "sign stop 2 1 e 1.2")).unwrap_err();
-        assert!(matches!(e.problem(), Some(LineProblem::NoWall { side: Dir::East, .. })), "{e}");
+        assert!(
+            matches!(
+                e.problem(),
+                Some(LineProblem::NoWall {
+                    side: Dir::East,
+                    ..
+                })
+            ),
+            "{e}"
+        );
         assert_eq!(e.line(), Some(5));
         let e = parse(&sub("sign stop 3 1 e 1.2", "sign stop 3 1 e 3.4")).unwrap_err();
-        assert!(matches!(e.problem(), Some(LineProblem::SignHeight { .. })), "{e}");
+        assert!(
+            matches!(e.problem(), Some(LineProblem::SignHeight { .. })),
+            "{e}"
+        );
         let e = parse(&sub("cell 2\n", "cell 2\ncell 3\n")).unwrap_err();
-        assert_eq!((e.line(), e.problem()), (Some(3), Some(&LineProblem::Duplicate("cell"))));
+        assert_eq!(
+            (e.line(), e.problem()),
+            (Some(3), Some(&LineProblem::Duplicate("cell")))
+        );
         let e = parse(&sub("goal 3 1\n", "")).unwrap_err();
         assert!(matches!(e, MazeError::Missing { what: "goal", .. }), "{e}");
         assert!(e.to_string().contains("t.maze"), "{e}");

@@ -94,7 +94,9 @@ impl Perception for GroundTruthPerception {
             .truth
             .signs
             .iter()
-            .filter(|s| s.bbox.height() >= self.min_height_px && s.visible_fraction >= self.min_visible)
+            .filter(|s| {
+                s.bbox.height() >= self.min_height_px && s.visible_fraction >= self.min_visible
+            })
             .map(|s| Detection {
                 bbox: s.bbox,
                 score: 1.0,

@@ -281,7 +281,13 @@ impl Renderer {
 
     /// Render the view from `pose` with `walkers` in the scene into `rgb` (resized to
     /// `width * height * 3`, RGB8) and return what is visible. `frame` seeds the noise.
-    pub fn render(&mut self, pose: Pose, walkers: &[Walker], frame: u64, rgb: &mut Vec<u8>) -> FrameTruth {
+    pub fn render(
+        &mut self,
+        pose: Pose,
+        walkers: &[Walker],
+        frame: u64,
+        rgb: &mut Vec<u8>,
+    ) -> FrameTruth {
         let (w, h) = (self.camera.width as usize, self.camera.height as usize);
         let f = self.camera.focal_px();
         let cy = h as f64 / 2.0;
@@ -306,7 +312,11 @@ impl Renderer {
             let y_bot = cy + f * alt / depth;
             let face_hash = texture::hash_n(&[hit.col, hit.row, hit.face as i64, self.seed as i64]);
             let kind = WallKind::of(face_hash);
-            let shade = if hit.face == Dir::East || hit.face == Dir::West { 0.86 } else { 1.0 };
+            let shade = if hit.face == Dir::East || hit.face == Dir::West {
+                0.86
+            } else {
+                1.0
+            };
             let wall_light = self.light.at(depth as f32) * shade;
             let u = (hit.along * cell) as f32;
             for y in 0..h {
@@ -315,7 +325,11 @@ impl Renderer {
                     let dist = (wall_h - alt) * f / (cy - yc);
                     let (wx, wy) = (pose.x + d.0 * dist, pose.y + d.1 * dist);
                     let (c, lamp) = texture::ceiling(wx as f32, wy as f32, cell as f32);
-                    let l = if lamp { 1.0 } else { self.light.at(dist as f32) };
+                    let l = if lamp {
+                        1.0
+                    } else {
+                        self.light.at(dist as f32)
+                    };
                     c.map(|v| v * l)
                 } else if yc < y_bot {
                     let z = alt + (cy - yc) * depth / f;
@@ -368,7 +382,15 @@ impl Renderer {
 
         let mut truth = FrameTruth::default();
         for sp in &sprites {
-            let cov = draw_sprite(&mut self.buf, &self.zbuf, &self.light, &self.camera, sp, pose, &ray);
+            let cov = draw_sprite(
+                &mut self.buf,
+                &self.zbuf,
+                &self.light,
+                &self.camera,
+                sp,
+                pose,
+                &ray,
+            );
             let Some(cov) = cov else { continue };
             let bbox = BBox::new(
                 cov.x_min as f32,
@@ -490,7 +512,11 @@ fn draw_sprite(
                 SpriteKind::Board(b) => sample(&b.sprite, s, v),
                 SpriteKind::Walker(wk) => {
                     let (pw, ph) = texture::PEDESTRIAN_SIZE;
-                    match texture::pedestrian(((s - 0.5) * pw) as f32, ((1.0 - v) * ph) as f32, wk.phase as f32) {
+                    match texture::pedestrian(
+                        ((s - 0.5) * pw) as f32,
+                        ((1.0 - v) * ph) as f32,
+                        wk.phase as f32,
+                    ) {
                         Some(c) => (c, 1.0),
                         None => continue,
                     }
@@ -536,7 +562,10 @@ fn sample(img: &RgbaImage, u: f64, v: f64) -> ([f32; 3], f32) {
     let fx = (u * iw - 0.5).clamp(0.0, iw - 1.0);
     let fy = (v * ih - 0.5).clamp(0.0, ih - 1.0);
     let (x0, y0) = (fx.floor() as u32, fy.floor() as u32);
-    let (x1, y1) = ((x0 + 1).min(img.width() - 1), (y0 + 1).min(img.height() - 1));
+    let (x1, y1) = (
+        (x0 + 1).min(img.width() - 1),
+        (y0 + 1).min(img.height() - 1),
+    );
     let (tx, ty) = ((fx - f64::from(x0)) as f32, (fy - f64::from(y0)) as f32);
     let mut acc = [0.0f32; 4];
     for (x, y, wgt) in [
@@ -601,8 +630,16 @@ struct Hit {
 /// returned distance is the perpendicular depth when `d`'s forward component is 1).
 fn cast(maze: &Maze, px: f64, py: f64, d: (f64, f64)) -> Hit {
     let (mut col, mut row) = (px.floor() as i64, py.floor() as i64);
-    let ddx = if d.0 == 0.0 { f64::INFINITY } else { (1.0 / d.0).abs() };
-    let ddy = if d.1 == 0.0 { f64::INFINITY } else { (1.0 / d.1).abs() };
+    let ddx = if d.0 == 0.0 {
+        f64::INFINITY
+    } else {
+        (1.0 / d.0).abs()
+    };
+    let ddy = if d.1 == 0.0 {
+        f64::INFINITY
+    } else {
+        (1.0 / d.1).abs()
+    };
     let (step_x, mut side_x) = if d.0 < 0.0 {
         (-1, (px - col as f64) * ddx)
     } else {
@@ -643,10 +680,16 @@ fn cast(maze: &Maze, px: f64, py: f64, d: (f64, f64)) -> Hit {
     let dist = if x_side { side_x - ddx } else { side_y - ddy }.max(1e-4);
     let (face, along) = if x_side {
         let yy = py + dist * d.1;
-        (if step_x > 0 { Dir::West } else { Dir::East }, yy - yy.floor())
+        (
+            if step_x > 0 { Dir::West } else { Dir::East },
+            yy - yy.floor(),
+        )
     } else {
         let xx = px + dist * d.0;
-        (if step_y > 0 { Dir::North } else { Dir::South }, xx - xx.floor())
+        (
+            if step_y > 0 { Dir::North } else { Dir::South },
+            xx - xx.floor(),
+        )
     };
     Hit {
         dist,
@@ -689,7 +732,11 @@ mod tests {
             height: 54,
             ..CameraSpec::default()
         };
-        let pose = Pose { x: 4.5, y: 4.5, yaw: 0.0 };
+        let pose = Pose {
+            x: 4.5,
+            y: 4.5,
+            yaw: 0.0,
+        };
         let (mut a, mut b, mut c) = (Vec::new(), Vec::new(), Vec::new());
         let ta = Renderer::new(&m, cam, 1).render(pose, &[], 0, &mut a);
         let tb = Renderer::new(&m, cam, 1).render(pose, &[], 0, &mut b);

@@ -12,9 +12,9 @@ pub fn hash(mut x: u64) -> u64 {
 
 /// Hash of several integers.
 pub fn hash_n(parts: &[i64]) -> u64 {
-    parts
-        .iter()
-        .fold(0x5151_a5a5_u64, |h, &p| hash(h ^ (p as u64).wrapping_mul(0x2545_f491_4f6c_dd1d)))
+    parts.iter().fold(0x5151_a5a5_u64, |h, &p| {
+        hash(h ^ (p as u64).wrapping_mul(0x2545_f491_4f6c_dd1d))
+    })
 }
 
 /// A hash mapped to `[0, 1)`.
@@ -87,7 +87,11 @@ pub fn wall(kind: WallKind, face_hash: u64, u: f32, z: f32) -> [f32; 3] {
             let row = (z / row_h).floor();
             let zr = z - row * row_h;
             let box_w = 0.6;
-            let shift = if (row as i64) % 2 == 0 { 0.0 } else { box_w / 2.0 };
+            let shift = if (row as i64) % 2 == 0 {
+                0.0
+            } else {
+                box_w / 2.0
+            };
             let col = ((u + shift) / box_w).floor();
             let ub = (u + shift) - col * box_w;
             if zr < 0.015 || ub < 0.015 {
@@ -118,7 +122,11 @@ pub fn wall(kind: WallKind, face_hash: u64, u: f32, z: f32) -> [f32; 3] {
                 return [0.86, 0.7, 0.12]; // safety band
             }
             let ridge = 0.9 + 0.1 * (u * std::f32::consts::TAU / 0.12).sin();
-            let base = if z < 0.3 { 0.4 } else { 0.6 + 0.04 * unit(face_hash) };
+            let base = if z < 0.3 {
+                0.4
+            } else {
+                0.6 + 0.04 * unit(face_hash)
+            };
             [base * ridge, (base + 0.015) * ridge, (base + 0.035) * ridge]
         }
     }
@@ -144,12 +152,22 @@ pub fn floor(x: f32, y: f32, stripe: bool) -> [f32; 3] {
 /// Ceiling at world `(x, y)`; `cell` is the cell size. Returns the colour and whether
 /// it is a lamp (emissive, not dimmed by distance).
 pub fn ceiling(x: f32, y: f32, cell: f32) -> ([f32; 3], bool) {
-    let (fx, fy) = (x.rem_euclid(cell) - cell / 2.0, y.rem_euclid(cell) - cell / 2.0);
+    let (fx, fy) = (
+        x.rem_euclid(cell) - cell / 2.0,
+        y.rem_euclid(cell) - cell / 2.0,
+    );
     if fx.abs() < 0.25 && fy.abs() < 0.6 {
         return ([0.97, 0.97, 0.92], true);
     }
     let beam = x.rem_euclid(cell) < 0.06 || y.rem_euclid(cell) < 0.06;
-    (if beam { [0.16, 0.16, 0.18] } else { [0.26, 0.26, 0.28] }, false)
+    (
+        if beam {
+            [0.16, 0.16, 0.18]
+        } else {
+            [0.26, 0.26, 0.28]
+        },
+        false,
+    )
 }
 
 /// Pedestrian billboard size `(width, height)` in metres.
@@ -163,7 +181,11 @@ pub fn pedestrian(x: f32, z: f32, phase: f32) -> Option<[f32; 3]> {
         return Some([0.72, 0.55, 0.43]);
     }
     if (0.85..1.5).contains(&z) && x.abs() < 0.2 {
-        return Some(if (1.1..1.18).contains(&z) { [0.8, 0.8, 0.75] } else { [0.9, 0.72, 0.1] });
+        return Some(if (1.1..1.18).contains(&z) {
+            [0.8, 0.8, 0.75]
+        } else {
+            [0.9, 0.72, 0.1]
+        });
     }
     let swing = phase.sin() * 0.07;
     if (0.92..1.46).contains(&z) {

@@ -8,6 +8,7 @@ use std::ffi::OsString;
 pub mod bench;
 pub mod bundle;
 pub mod data;
+pub mod fly;
 pub mod eval;
 pub mod policy;
 pub mod run;
@@ -26,6 +27,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Fly the warehouse mazes in closed loop and print the paper's end-to-end table.
+    Fly(fly::FlyArgs),
     /// Synthetic dataset generation, import, export, summary and inspection.
     Data(data::DataArgs),
     /// Train the CNN detector (Faster-R-CNN style) on a dataset folder.
@@ -55,6 +58,7 @@ where
 {
     let cli = Cli::try_parse_from(args)?;
     match cli.command {
+        Command::Fly(args) => fly::run(args),
         Command::Data(args) => data::run(args),
         Command::Run(args) => run::run(args),
         Command::Policy(args) => policy::run(args),

@@ -1,0 +1,552 @@
+//! Integration tests of the maze simulator: the renderer against its own ground truth,
+//! distance from box height, closed-loop flights through every shipped maze, and
+//! failures that must end cleanly (collision, unreachable goal, bad files).
+use frugal_data::Sign;
+use frugal_runtime::BBox;
+use frugal_sim::flight::Mode;
+use frugal_sim::render::Walker;
+use frugal_sim::{
+    CameraSpec, DeviceProfile, FlightConfig, FlightError, FrameInput, GroundTruthPerception, Maze,
+    Outcome, Percept, PerceptionError, Pose, Renderer,
+};
+use std::path::{Path, PathBuf};
+
+fn maze_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("mazes")
+}
+
+fn corridor(sign_line: &str) -> Maze {
+    let text = format!(
+        "cell 3\nstart 1 1 east\ngoal 4 1\n{sign_line}\nmap\n######\n#....#\n######\nend\n"
+    );
+    Maze::parse(&text, Path::new("corridor.maze")).unwrap()
+}
+
+fn render(
+    maze: &Maze,
+    cam: CameraSpec,
+    pose: Pose,
+    walkers: &[Walker],
+) -> (Vec<u8>, frugal_sim::FrameTruth) {
+    let mut rgb = Vec::new();
+    let truth = Renderer::new(maze, cam, 7).render(pose, walkers, 0, &mut rgb);
+    (rgb, truth)
+}
+
+fn px(rgb: &[u8], w: u32, x: u32, y: u32) -> [f32; 3] {
+    let i = ((y * w + x) * 3) as usize;
+    [
+        f32::from(rgb[i]),
+        f32::from(rgb[i + 1]),
+        f32::from(rgb[i + 2]),
+    ]
+}
+
+fn is_sign_red(p: [f32; 3]) -> bool {
+    p[0] > 120.0 && p[1] < 0.4 * p[0] && p[2] < 0.4 * p[0]
+}
+
+fn is_sign_blue(p: [f32; 3]) -> bool {
+    p[2] > 110.0 && p[0] < 0.4 * p[2] && p[1] < 0.7 * p[2]
+}
+
+fn is_white(p: [f32; 3]) -> bool {
+    p.iter().all(|&v| v > 190.0)
+}
+
+/// Fraction of pixels satisfying `pred` in the box shrunk to its central `keep` part.
+fn fraction_in(rgb: &[u8], w: u32, b: BBox, keep: f32, pred: impl Fn([f32; 3]) -> bool) -> f64 {
+    let (cx, cy) = b.center();
+    let (hw, hh) = (b.width() * keep / 2.0, b.height() * keep / 2.0);
+    let (mut n, mut hit) = (0, 0);
+    for y in (cy - hh) as u32..(cy + hh) as u32 {
+        for x in (cx - hw) as u32..(cx + hw) as u32 {
+            n += 1;
+            hit += usize::from(pred(px(rgb, w, x, y)));
+        }
+    }
+    hit as f64 / n.max(1) as f64
+}
+
+#[test]
+fn the_renderer_draws_a_sign_exactly_inside_its_projected_box() {
+    let maze = corridor("sign stop 4 1 e 1.2");
+    let cam = CameraSpec::default();
+    // 4 m in front of the east wall, a little off the corridor's axis.
+    let pose = Pose {
+        x: 11.0,
+        y: 4.2,
+        yaw: 0.05,
+    };
+    let (rgb, truth) = render(&maze, cam, pose, &[]);
+    assert_eq!(truth.signs.len(), 1, "{truth:?}");
+    let t = truth.signs[0];
+    assert_eq!(t.class, Sign::Stop.id());
+    assert!(t.visible_fraction > 0.99);
+    let b = t.bbox;
+    // The box is where the pinhole projection puts the board (±1 px).
+    let f = cam.focal_px();
+    assert!(
+        (f64::from(b.height()) - f * 0.45 / t.depth).abs() < 1.0,
+        "{b:?} depth {}",
+        t.depth
+    );
+    // Inside: the red octagon with white letters.
+    let red = fraction_in(&rgb, cam.width, b, 0.7, is_sign_red);
+    let sign = fraction_in(&rgb, cam.width, b, 0.7, |p| is_sign_red(p) || is_white(p));
+    assert!(
+        red > 0.55 && sign > 0.9,
+        "red {red:.2}, red or white {sign:.2}"
+    );
+    // Outside (beyond a 1 px margin): no sign red anywhere.
+    let mut outside_red = 0;
+    for y in 0..cam.height {
+        for x in 0..cam.width {
+            let (xf, yf) = (x as f32 + 0.5, y as f32 + 0.5);
+            let near = xf > b.x1 - 1.0 && xf < b.x2 + 1.0 && yf > b.y1 - 1.0 && yf < b.y2 + 1.0;
+            if !near && is_sign_red(px(&rgb, cam.width, x, y)) {
+                outside_red += 1;
+            }
+        }
+    }
+    assert_eq!(outside_red, 0);
+    // The octagon's corners are transparent: they show the wall, not red.
+    let corner = px(&rgb, cam.width, (b.x1 + 1.5) as u32, (b.y1 + 1.5) as u32);
+    assert!(!is_sign_red(corner), "{corner:?}");
+}
+
+#[test]
+fn arrows_point_the_right_way_on_flat_and_flag_boards() {
+    for (line, pose) in [
+        (
+            "sign turn_left 4 1 e 1.2",
+            Pose {
+                x: 11.0,
+                y: 4.5,
+                yaw: 0.0,
+            },
+        ),
+        // A flag board seen from behind is printed on its back face too, unmirrored.
+        (
+            "sign turn_left 3 1 n 1.2 flag",
+            Pose {
+                x: 7.0,
+                y: 4.5,
+                yaw: -0.25,
+            },
+        ),
+        (
+            "sign turn_left 3 1 n 1.2 flag",
+            Pose {
+                x: 14.0,
+                y: 4.5,
+                yaw: std::f64::consts::PI + 0.25,
+            },
+        ),
+    ] {
+        let maze = corridor(line);
+        let cam = CameraSpec::default();
+        let (rgb, truth) = render(&maze, cam, pose, &[]);
+        assert_eq!(truth.signs.len(), 1, "{line} {pose:?}");
+        let b = truth.signs[0].bbox;
+        // The arrow head is the tall white part, the shaft the thin one: count the
+        // rows holding white in a band a fifth of the way in from each side.
+        let white_rows = |u0: f32, u1: f32| {
+            let (x0, x1) = (
+                (b.x1 + b.width() * u0) as u32,
+                (b.x1 + b.width() * u1) as u32,
+            );
+            // Rows of the disc's inner half only, away from the white rim.
+            let (y0, y1) = (
+                (b.y1 + b.height() * 0.25) as u32,
+                (b.y2 - b.height() * 0.25) as u32,
+            );
+            (y0..y1)
+                .filter(|&y| (x0..x1).any(|x| is_white(px(&rgb, cam.width, x, y))))
+                .count() as f32
+        };
+        let (left, right) = (white_rows(0.19, 0.44), white_rows(0.56, 0.81));
+        assert!(
+            left > 1.8 * right && right > 0.0,
+            "{line} {pose:?}: {left} vs {right} rows"
+        );
+        assert!(fraction_in(&rgb, cam.width, b, 0.6, |p| is_sign_blue(p) || is_white(p)) > 0.85);
+    }
+}
+
+#[test]
+fn walls_hide_signs_around_corners() {
+    let maze = Maze::load(&maze_dir().join("easy.maze")).unwrap();
+    let cam = CameraSpec::default();
+    let pose = frugal_sim::flight::start_pose(&maze, 1);
+    let (rgb, truth) = render(&maze, cam, pose, &[]);
+    // Only the turn sign at the end of the aisle; the goal's STOP is round the corner.
+    let classes: Vec<_> = truth.signs.iter().map(|s| s.class).collect();
+    assert_eq!(classes, [Sign::TurnLeft.id()]);
+    let red = (0..cam.height)
+        .flat_map(|y| (0..cam.width).map(move |x| (x, y)))
+        .filter(|&(x, y)| is_sign_red(px(&rgb, cam.width, x, y)))
+        .count();
+    assert_eq!(red, 0);
+    // Facing away from a single-sided board: not visible.
+    let (_, truth) = render(
+        &maze,
+        cam,
+        Pose {
+            yaw: std::f64::consts::PI,
+            ..pose
+        },
+        &[],
+    );
+    assert!(truth.signs.is_empty());
+}
+
+#[test]
+fn a_pedestrian_is_drawn_and_reported_where_it_stands() {
+    let maze = corridor("sign stop 4 1 e 1.2");
+    let cam = CameraSpec::default();
+    let walker = Walker {
+        zone: 0,
+        pos: (10.0, 4.5),
+        phase: 0.0,
+    };
+    let (rgb, truth) = render(
+        &maze,
+        cam,
+        Pose {
+            x: 5.0,
+            y: 4.5,
+            yaw: 0.0,
+        },
+        &[walker],
+    );
+    assert_eq!(truth.pedestrians.len(), 1);
+    let p = truth.pedestrians[0];
+    assert!((p.depth - 5.0).abs() < 1e-6, "{p:?}");
+    // The hi-vis vest sits in the box's upper-middle part.
+    let vest = BBox::new(
+        p.bbox.x1,
+        p.bbox.y1 + p.bbox.height() * 0.2,
+        p.bbox.x2,
+        p.bbox.y1 + p.bbox.height() * 0.35,
+    );
+    let yellow = fraction_in(&rgb, cam.width, vest, 0.5, |q| {
+        q[0] > 150.0 && q[1] > 120.0 && q[2] < 80.0
+    });
+    assert!(yellow > 0.6, "{yellow}");
+    // Behind a wall: not reported.
+    let (_, truth) = render(
+        &maze,
+        cam,
+        Pose {
+            x: 5.0,
+            y: 4.5,
+            yaw: 0.0,
+        },
+        &[Walker {
+            pos: (10.0, 1.0),
+            ..walker
+        }],
+    );
+    assert!(truth.pedestrians.is_empty());
+}
+
+#[test]
+fn distance_from_box_height_matches_the_geometry() {
+    let maze = corridor("sign turn_right 4 1 e 1.2");
+    let cam = CameraSpec::default();
+    for depth in [1.5, 2.0, 3.0, 5.0, 8.0, 11.0] {
+        for lateral in [0.0, 0.6] {
+            let pose = Pose {
+                x: 15.0 - 0.01 - depth,
+                y: 4.5 + lateral,
+                yaw: 0.0,
+            };
+            let (_, truth) = render(&maze, cam, pose, &[]);
+            let b = truth.signs[0].bbox;
+            let est = cam.distance_from_height(maze.sign_size, f64::from(b.height()));
+            assert!(
+                (est - depth).abs() / depth < 0.01,
+                "depth {depth} lateral {lateral}: estimated {est:.3} from {b:?}"
+            );
+        }
+    }
+}
+
+fn fast_config() -> FlightConfig {
+    FlightConfig {
+        camera: CameraSpec {
+            width: 240,
+            height: 135,
+            ..CameraSpec::default()
+        },
+        ..FlightConfig::default()
+    }
+}
+
+#[test]
+fn ground_truth_flights_complete_every_shipped_maze() {
+    let mut names = Vec::new();
+    for entry in std::fs::read_dir(maze_dir()).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "maze") {
+            names.push(path);
+        }
+    }
+    names.sort();
+    assert_eq!(names.len(), 3, "{names:?}");
+    for path in names {
+        let maze = Maze::load(&path).unwrap();
+        assert!(maze.goal_connected());
+        let r = frugal_sim::fly(
+            &maze,
+            &fast_config(),
+            &mut GroundTruthPerception::default(),
+            1,
+            None,
+        )
+        .unwrap();
+        assert_eq!(r.outcome, Outcome::Success, "{}: {:?}", maze.name, r.events);
+        let turns = maze
+            .signs
+            .iter()
+            .filter(|s| matches!(s.sign, Sign::TurnLeft | Sign::TurnRight))
+            .count();
+        let waits = maze.signs.iter().filter(|s| s.sign == Sign::Wait).count();
+        let count = |p: &str| r.events.iter().filter(|e| e.what.starts_with(p)).count();
+        assert_eq!(count("turn "), turns, "{}: {:?}", maze.name, r.events);
+        assert_eq!(
+            count("stop at WAIT"),
+            waits,
+            "{}: {:?}",
+            maze.name,
+            r.events
+        );
+        assert_eq!(count("land"), 1);
+        // 5 ms × the tx2-like slowdown of 6 = 30 ms per frame.
+        assert!((r.fps - 1000.0 / 30.0).abs() < 0.1, "{}", r.fps);
+        assert!(
+            r.avg_velocity <= 0.4 + 1e-9 && r.avg_velocity > 0.3,
+            "{}",
+            r.avg_velocity
+        );
+        assert_eq!(r.sign_hits, r.sign_frames);
+        let end = r.track.last().unwrap();
+        assert_eq!(maze.cell_of(end.x, end.y), Some(maze.goal));
+    }
+}
+
+#[test]
+fn slow_perception_slows_the_flight() {
+    let maze = Maze::load(&maze_dir().join("easy.maze")).unwrap();
+    let mut cfg = fast_config();
+    let fast =
+        frugal_sim::fly(&maze, &cfg, &mut GroundTruthPerception::default(), 2, None).unwrap();
+    cfg.device = DeviceProfile::host();
+    let mut slow_p = GroundTruthPerception {
+        compute_ms: 500.0,
+        ..GroundTruthPerception::default()
+    };
+    let slow = frugal_sim::fly(&maze, &cfg, &mut slow_p, 2, None).unwrap();
+    assert_eq!(slow.outcome, Outcome::Success, "{:?}", slow.events);
+    assert!((slow.fps - 2.0).abs() < 0.01, "{}", slow.fps);
+    // v = reaction distance × fps = 0.03 m × 2 = 6 cm/s, less while turning.
+    assert!(
+        slow.avg_velocity <= 0.06 + 1e-9 && slow.avg_velocity > 0.05,
+        "{}",
+        slow.avg_velocity
+    );
+    assert!(
+        slow.time_s > 5.0 * fast.time_s,
+        "{} vs {}",
+        slow.time_s,
+        fast.time_s
+    );
+}
+
+#[test]
+fn flights_are_deterministic_per_seed() {
+    let maze = Maze::load(&maze_dir().join("medium.maze")).unwrap();
+    let cfg = fast_config();
+    let run = |seed| {
+        frugal_sim::fly(
+            &maze,
+            &cfg,
+            &mut GroundTruthPerception::default(),
+            seed,
+            None,
+        )
+        .unwrap()
+    };
+    let (a, b, c) = (run(3), run(3), run(4));
+    assert_eq!(
+        (a.time_s, &a.track, &a.events),
+        (b.time_s, &b.track, &b.events)
+    );
+    assert_ne!(a.track, c.track);
+}
+
+#[test]
+fn the_drone_hovers_while_pedestrians_cross() {
+    let text = std::fs::read_to_string(maze_dir().join("medium.maze")).unwrap();
+    let wait_line = "wait 4 2 ns 12 0.4";
+    assert!(text.contains(wait_line));
+    let cfg = fast_config();
+    let fly = |duty: &str| {
+        let maze = Maze::parse(
+            &text.replace(wait_line, &format!("wait 4 2 ns 12 {duty}")),
+            Path::new("m.maze"),
+        )
+        .unwrap();
+        let mut held_with_pedestrian = true;
+        let mut observe = |v: &frugal_sim::FrameView<'_>| {
+            if v.mode == Mode::HoldForPedestrian && v.truth.pedestrians.is_empty() {
+                held_with_pedestrian = false;
+            }
+        };
+        let r = frugal_sim::fly(
+            &maze,
+            &cfg,
+            &mut GroundTruthPerception::default(),
+            5,
+            Some(&mut observe),
+        )
+        .unwrap();
+        assert!(held_with_pedestrian);
+        r
+    };
+    let busy = fly("0.9");
+    let quiet = fly("0.000001");
+    assert_eq!(busy.outcome, Outcome::Success, "{:?}", busy.events);
+    assert_eq!(quiet.outcome, Outcome::Success);
+    // Without pedestrians the drone only hovers the minimum second at the sign.
+    assert!((quiet.wait_s - 1.0).abs() < 0.1, "{}", quiet.wait_s);
+    assert!(
+        busy.wait_s > quiet.wait_s + 2.0,
+        "{} vs {}",
+        busy.wait_s,
+        quiet.wait_s
+    );
+}
+
+#[test]
+fn an_unreachable_goal_ends_at_the_time_limit() {
+    // The signs lead round a loop; the goal is walled off.
+    let text = "\
+cell 3
+start 1 1 east
+goal 7 2
+sign turn_right 5 1 e 1.2
+sign turn_right 5 3 s 1.2
+sign turn_right 1 3 w 1.2
+sign turn_right 1 1 n 1.2
+sign stop 7 2 n 1.2
+map
+#########
+#.....###
+#.###.#.#
+#.....###
+#########
+end
+";
+    let maze = Maze::parse(text, Path::new("loop.maze")).unwrap();
+    assert!(!maze.goal_connected());
+    let mut cfg = fast_config();
+    cfg.camera = CameraSpec {
+        width: 160,
+        height: 90,
+        ..CameraSpec::default()
+    };
+    cfg.nav.time_limit_s = 150.0;
+    let r = frugal_sim::fly(&maze, &cfg, &mut GroundTruthPerception::default(), 1, None).unwrap();
+    assert_eq!(r.outcome, Outcome::TimeLimit { limit_s: 150.0 });
+    assert!(r.outcome.describe().contains("150 s time limit"));
+    assert!((r.time_s - 150.0).abs() < 0.05, "{}", r.time_s);
+    // It went all the way round at least once.
+    assert!(
+        r.events
+            .iter()
+            .filter(|e| e.what.starts_with("turn right"))
+            .count()
+            >= 4,
+        "{:?}",
+        r.events
+    );
+}
+
+#[test]
+fn a_missing_turn_sign_ends_in_a_collision() {
+    let maze = corridor("sign c43 4 1 e 1.2");
+    let r = frugal_sim::fly(
+        &maze,
+        &fast_config(),
+        &mut GroundTruthPerception::default(),
+        1,
+        None,
+    )
+    .unwrap();
+    let Outcome::Collision { x, .. } = r.outcome else {
+        panic!("{:?}", r.outcome)
+    };
+    assert!((x - (15.0 - 0.25)).abs() < 0.05, "{x}");
+    assert_eq!(r.events.last().unwrap().what, "collision");
+}
+
+#[test]
+fn perception_errors_name_the_frame() {
+    let maze = corridor("sign stop 4 1 e 1.2");
+    let mut failing = |input: &FrameInput<'_>| -> Result<Percept, PerceptionError> {
+        if input.index == 3 {
+            Err("model file vanished".into())
+        } else {
+            Ok(Percept {
+                detections: Vec::new(),
+                compute_ms: 10.0,
+            })
+        }
+    };
+    let e = frugal_sim::fly(&maze, &fast_config(), &mut failing, 1, None).unwrap_err();
+    assert!(matches!(e, FlightError::Perception { frame: 3, .. }), "{e}");
+    assert!(
+        e.to_string().contains("frame 3") && e.to_string().contains("model file vanished"),
+        "{e}"
+    );
+}
+
+#[test]
+fn malformed_maze_files_report_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = std::fs::read_to_string(maze_dir().join("easy.maze")).unwrap();
+    for (from, to, problem) in [
+        (
+            "sign stop 5 1 n 1.2",
+            "sign stop 5 1 s 1.2",
+            "no wall on its South side",
+        ),
+        (
+            "start 1 3 east",
+            "start 1 3 upward",
+            "not a valid direction",
+        ),
+        ("#####.#\n#####.#", "#####.#\n####..", "map row has 6 cells"),
+        ("goal 5 1", "goal 0 0", "cell (0, 0) is a wall"),
+        ("light normal", "light dim", "not a valid lighting"),
+    ] {
+        assert!(good.contains(from), "{from}");
+        let text = good.replace(from, to);
+        let path = dir.path().join("bad.maze");
+        std::fs::write(&path, &text).unwrap();
+        let e = Maze::load(&path).unwrap_err();
+        let line = text
+            .lines()
+            .position(|l| l.starts_with(to.lines().last().unwrap()))
+            .unwrap()
+            + 1;
+        let msg = e.to_string();
+        assert!(
+            msg.starts_with(&format!("{}:{line}: ", path.display())),
+            "{msg}"
+        );
+        assert!(msg.contains(problem), "{msg}");
+    }
+}

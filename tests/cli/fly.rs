@@ -1,0 +1,125 @@
+//! `frugal fly`: closed-loop flights through the shipped easy maze with ground-truth
+//! perception at a small camera size, and its clear failures.
+use std::path::{Path, PathBuf};
+
+fn frugal(args: &[&str]) -> Result<(), String> {
+    frugal::run(std::iter::once("frugal").chain(args.iter().copied())).map_err(|e| format!("{e:#}"))
+}
+
+fn p(path: &Path) -> &str {
+    path.to_str().expect("temp paths are UTF-8")
+}
+
+fn maze(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../sim/mazes")
+        .join(name)
+}
+
+#[test]
+fn fly_easy_maze_writes_table_files_plots_and_frames() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("fly");
+    frugal(&[
+        "fly",
+        "--maze",
+        p(&maze("easy.maze")),
+        "--seeds",
+        "2",
+        "--width",
+        "160",
+        "--height",
+        "90",
+        "--device",
+        "host",
+        "--gt-compute-ms",
+        "40",
+        "--frames-every",
+        "200",
+        "--gif",
+        "--gif-every",
+        "100",
+        "--out",
+        p(&out),
+        "--quiet",
+    ])
+    .expect("fly");
+    let dir = out.join("easy");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).expect("summary"))
+            .expect("json");
+    assert_eq!(summary["runs"], 2);
+    assert_eq!(summary["successes"], 2);
+    assert_eq!(summary["collisions"], 0);
+    // 40 ms per frame on the host profile: 25 fps.
+    let fps = summary["fps"]["mean"].as_f64().expect("fps");
+    assert!((fps - 25.0).abs() < 0.01, "{fps}");
+    let flights: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("flights.json")).expect("flights"))
+            .expect("json");
+    let seeds: Vec<_> = flights
+        .as_array()
+        .expect("array")
+        .iter()
+        .map(|f| f["seed"].as_u64())
+        .collect();
+    assert_eq!(seeds, [Some(1), Some(2)]);
+    let csv = std::fs::read_to_string(dir.join("flights.csv")).expect("csv");
+    assert_eq!(csv.lines().count(), 3);
+    assert!(csv.lines().nth(1).expect("row").contains(",success,"));
+    for file in [
+        "top_view.png",
+        "top_view.svg",
+        "flight.gif",
+        "frames/frame_000000.png",
+        "frames/frame_000200.png",
+    ] {
+        let len = std::fs::metadata(dir.join(file))
+            .map(|m| m.len())
+            .unwrap_or(0);
+        assert!(len > 100, "{file} missing or empty");
+    }
+    let svg = std::fs::read_to_string(dir.join("top_view.svg")).expect("svg");
+    assert!(
+        svg.contains("seed 1") && svg.contains("STOP"),
+        "legend and sign labels"
+    );
+    // A GIF89a at half the camera size (logical screen size, little-endian).
+    let gif = std::fs::read(dir.join("flight.gif")).expect("gif");
+    assert_eq!(&gif[..6], b"GIF89a");
+    assert_eq!(
+        (
+            u16::from_le_bytes([gif[6], gif[7]]),
+            u16::from_le_bytes([gif[8], gif[9]])
+        ),
+        (80, 45)
+    );
+    assert_eq!(gif.last(), Some(&0x3b), "GIF trailer written");
+    assert!(out.join("summary.json").exists());
+}
+
+#[test]
+fn fly_reports_bad_maze_lines_and_unknown_devices() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let bad = tmp.path().join("bad.maze");
+    std::fs::write(
+        &bad,
+        "start 1 1 east\ngoal 2 1\nsign yield 1 1 n 1.2\nmap\n####\n#..#\n####\nend\n",
+    )
+    .expect("write");
+    let e = frugal(&["fly", "--maze", p(&bad), "--quiet"]).expect_err("bad maze");
+    assert!(
+        e.contains("bad.maze:3:") && e.contains("unknown sign `yield`"),
+        "{e}"
+    );
+    let e = frugal(&[
+        "fly",
+        "--maze",
+        p(&maze("easy.maze")),
+        "--device",
+        "pdp11",
+        "--quiet",
+    ])
+    .expect_err("device");
+    assert!(e.contains("unknown device profile `pdp11`"), "{e}");
+}

@@ -1,0 +1,197 @@
+//! `frugal fly`: closed-loop flights through the warehouse mazes, the paper's
+//! end-to-end table (frame rate, time to completion, velocity, plus success and
+//! collisions), JSON / CSV, top views and camera frames.
+use anyhow::Context;
+use clap::{Args, ValueEnum};
+use frugal_sim::report::{self, GifRecorder, Summary};
+use frugal_sim::{
+    CameraSpec, DeviceProfile, FlightConfig, FlightResult, FrameView, GroundTruthPerception, Maze,
+    Perception,
+};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
+
+/// Arguments of `frugal fly`.
+#[derive(Args, Debug, Clone)]
+pub struct FlyArgs {
+    /// Maze file(s) (see `sim/mazes/README.md` for the format); repeat for several.
+    #[arg(long, required = true)]
+    pub maze: Vec<PathBuf>,
+    /// Flights per maze, with seeds `seed, seed+1, …`.
+    #[arg(long, default_value_t = 5)]
+    pub seeds: u64,
+    /// First seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// What perceives the signs.
+    #[arg(long, value_enum, default_value_t = PerceptionKind::GroundTruth)]
+    pub perception: PerceptionKind,
+    /// Compute time per frame of the ground-truth perception, ms (before the slowdown).
+    #[arg(long, default_value_t = 5.0)]
+    pub gt_compute_ms: f64,
+    /// Device profile: `host` (slowdown 1) or `tx2-like` (slowdown 6).
+    #[arg(long, default_value = "tx2-like")]
+    pub device: String,
+    /// Override the device's slowdown factor.
+    #[arg(long)]
+    pub slowdown: Option<f64>,
+    /// Camera width, pixels.
+    #[arg(long, default_value_t = 480)]
+    pub width: u32,
+    /// Camera height, pixels.
+    #[arg(long, default_value_t = 270)]
+    pub height: u32,
+    /// Simulated time limit per flight, seconds.
+    #[arg(long, default_value_t = 1800.0)]
+    pub time_limit: f64,
+    /// Output folder; each maze gets `<out>/<maze name>/`.
+    #[arg(long, default_value = "runs/fly")]
+    pub out: PathBuf,
+    /// Save every N-th camera frame of the first seed's flight as PNG (0 = none).
+    #[arg(long, default_value_t = 0)]
+    pub frames_every: u64,
+    /// Save the first seed's flight as an animated GIF (half resolution).
+    #[arg(long)]
+    pub gif: bool,
+    /// One GIF frame every N processed frames.
+    #[arg(long, default_value_t = 30)]
+    pub gif_every: u64,
+    /// Hide progress bars.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Perception choices. The detector-based ones (a static ONNX variant, the adaptive
+/// runtime) plug into `frugal_sim::Perception` once the bundle exists.
+#[derive(ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PerceptionKind {
+    /// Exact boxes from the renderer's projection, fixed compute time.
+    GroundTruth,
+}
+
+fn perception(args: &FlyArgs) -> Box<dyn Perception> {
+    match args.perception {
+        PerceptionKind::GroundTruth => Box::new(GroundTruthPerception {
+            compute_ms: args.gt_compute_ms,
+            ..GroundTruthPerception::default()
+        }),
+    }
+}
+
+/// Run `frugal fly`.
+pub fn run(args: FlyArgs) -> anyhow::Result<()> {
+    let mut device = DeviceProfile::by_name(&args.device).with_context(|| {
+        format!(
+            "unknown device profile `{}` (use host or tx2-like)",
+            args.device
+        )
+    })?;
+    if let Some(s) = args.slowdown {
+        anyhow::ensure!(
+            s > 0.0 && s.is_finite(),
+            "--slowdown must be positive, got {s}"
+        );
+        device.slowdown = s;
+    }
+    anyhow::ensure!(args.seeds >= 1, "--seeds must be at least 1");
+    anyhow::ensure!(
+        args.gt_compute_ms >= 0.0,
+        "--gt-compute-ms must not be negative"
+    );
+    let mut config = FlightConfig {
+        camera: CameraSpec {
+            width: args.width,
+            height: args.height,
+            ..CameraSpec::default()
+        },
+        device,
+        ..FlightConfig::default()
+    };
+    config.nav.time_limit_s = args.time_limit;
+    let mazes = args
+        .maze
+        .iter()
+        .map(|p| Maze::load(p))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut summaries: Vec<Summary> = Vec::new();
+    for maze in &mazes {
+        let dir = args.out.join(&maze.name);
+        let results = fly_maze(maze, &config, &args, &dir)?;
+        let summary = report::summarize(&results);
+        report::write_json(&dir.join("flights.json"), &results)?;
+        report::write_flights_csv(&dir.join("flights.csv"), &results)?;
+        report::write_json(&dir.join("summary.json"), &summary)?;
+        report::plot_top_view(&dir.join("top_view"), maze, &results)?;
+        for r in &results {
+            if !r.outcome.is_success() {
+                println!("{} seed {}: {}", maze.name, r.seed, r.outcome.describe());
+            }
+        }
+        summaries.push(summary);
+    }
+    report::write_json(&args.out.join("summary.json"), &summaries)?;
+    print!("{}", report::table(&summaries));
+    println!("results in {}", args.out.display());
+    Ok(())
+}
+
+fn fly_maze(
+    maze: &Maze,
+    config: &FlightConfig,
+    args: &FlyArgs,
+    dir: &Path,
+) -> anyhow::Result<Vec<FlightResult>> {
+    let bar = if args.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(args.seeds)
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{prefix:>8} [{bar:30}] {pos}/{len} flights {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar.set_prefix(maze.name.clone());
+    let mut results = Vec::new();
+    for seed in args.seed..args.seed + args.seeds {
+        let mut p = perception(args);
+        let first = seed == args.seed;
+        let mut gif = if first && args.gif {
+            Some(GifRecorder::create(&dir.join("flight.gif"), 100)?)
+        } else {
+            None
+        };
+        let mut failure: Option<report::ReportError> = None;
+        let frames_dir = dir.join("frames");
+        let mut observe = |v: &FrameView<'_>| {
+            if v.index % 100 == 0 {
+                bar.set_message(format!("seed {seed}: t = {:.0} s", v.time_s));
+            }
+            if failure.is_some() || !first {
+                return;
+            }
+            if args.frames_every > 0 && v.index % args.frames_every == 0 {
+                let path = frames_dir.join(format!("frame_{:06}.png", v.index));
+                if let Err(e) = report::save_frame_png(&path, v) {
+                    failure = Some(e);
+                }
+            }
+            if let Some(g) = gif.as_mut()
+                && v.index % args.gif_every.max(1) == 0
+                && let Err(e) = g.push(v)
+            {
+                failure = Some(e);
+            }
+        };
+        let r = frugal_sim::fly(maze, config, p.as_mut(), seed, Some(&mut observe))?;
+        if let Some(e) = failure {
+            return Err(e.into());
+        }
+        if let Some(g) = gif {
+            g.finish()?;
+        }
+        results.push(r);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    Ok(results)
+}
