@@ -61,6 +61,16 @@ impl HogParams {
         Self::grid(&[200, 500, 1000, 2000], &[1, 2], &[6, 8, 12], &[6, 9])
     }
 
+    /// The same proposal count with another HoG configuration.
+    pub fn with_hog(self, block: u8, cell: u8, bins: u8) -> HogParams {
+        HogParams {
+            block,
+            cell,
+            bins,
+            ..self
+        }
+    }
+
     /// The HoG part of the tuple (what a trained SVM set depends on).
     pub fn hog_key(&self) -> (u8, u8, u8) {
         (self.block, self.cell, self.bins)
