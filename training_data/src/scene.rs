@@ -189,16 +189,16 @@ fn person(canvas: &mut Canvas, rng: &mut ChaCha8Rng, feet: P, h: f32, k: f32, wa
     canvas.fill(&Shape::Disc((x, y - 7.6 * u), u * 0.62), skin, 1.0);
 }
 
-fn rack(
-    canvas: &mut Canvas,
-    rng: &mut ChaCha8Rng,
+/// A rack's footprint: left edge, floor line, width and height.
+struct RackBox {
     x0: f32,
     base: f32,
     w: f32,
     h: f32,
-    clutter: Clutter,
-    wall: [f32; 3],
-) {
+}
+
+fn rack(canvas: &mut Canvas, rng: &mut ChaCha8Rng, rb: RackBox, clutter: Clutter, wall: [f32; 3]) {
+    let RackBox { x0, base, w, h } = rb;
     let k = contrast(clutter);
     let frame = mix(
         wall,
@@ -376,7 +376,18 @@ pub fn draw_world(rng: &mut ChaCha8Rng, w: usize, h: usize, clutter: Clutter) ->
         let x0 = rng.random_range(-rw * 0.3..wf - rw * 0.7);
         let base = horizon + rng.random_range(0.0..(hf - horizon) * 0.5);
         let rh = (base * rng.random_range(0.55..0.9)).min(base - 4.0);
-        rack(&mut canvas, rng, x0, base, rw, rh, clutter, wall);
+        rack(
+            &mut canvas,
+            rng,
+            RackBox {
+                x0,
+                base,
+                w: rw,
+                h: rh,
+            },
+            clutter,
+            wall,
+        );
     }
 
     // People.
