@@ -62,15 +62,17 @@ pub struct ModelConfig {
 
 impl Default for ModelConfig {
     fn default() -> Self {
-        let block = |out_channels, convs| BlockConfig {
+        let block = |out_channels, stride| BlockConfig {
             out_channels,
-            stride: 2,
-            convs,
+            stride,
+            convs: 1,
         };
         Self {
             num_classes: 10,
-            backbone: vec![block(32, 1), block(64, 1), block(128, 2), block(256, 1)],
-            rpn_channels: 128,
+            // stride 8: signs are 12-100 px, and a 30 px sign must span a few cells
+            // for the RoI head to tell arrows and digits apart
+            backbone: vec![block(32, 2), block(64, 2), block(128, 2), block(256, 1)],
+            rpn_channels: 64,
             anchor_sizes: vec![16.0, 32.0, 64.0],
             anchor_ratios: vec![0.5, 1.0, 2.0],
             roi_size: 7,
@@ -209,7 +211,7 @@ impl Default for TrainConfig {
     fn default() -> Self {
         Self {
             seed: 7,
-            epochs: 4,
+            epochs: 5,
             batch_size: 4,
             optimizer: OptimizerKind::AdamW,
             lr: 1e-3,
@@ -298,6 +300,6 @@ mod tests {
         std::fs::write(&t, "[train]\nepoch = 3\n").unwrap();
         let err = Config::load(&t).unwrap_err().to_string();
         assert!(err.contains("c.toml") && err.contains("epoch"), "{err}");
-        assert_eq!(ModelConfig::default().stride(), 16);
+        assert_eq!(ModelConfig::default().stride(), 8);
     }
 }

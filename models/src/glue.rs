@@ -172,7 +172,7 @@ mod tests {
             vec![1.0, 0.0, 0.0, 1.0, 0.0, 0.0]
         );
         let cfg = ModelConfig::default();
-        assert_eq!(feature_size(&cfg, 270, 480), (17, 30));
+        assert_eq!(feature_size(&cfg, 270, 480), (34, 60));
     }
 
     #[test]

@@ -5,7 +5,7 @@
 //!
 //! - **backbone**: a stack of 3×3 conv + ReLU blocks described in
 //!   [`config::ModelConfig::backbone`] (`{out_channels, stride, convs}` each; the
-//!   default reaches 256 channels at stride 16), every layer named
+//!   default reaches 256 channels at stride 8), every layer named
 //!   `backbone/block{i}/conv{j}` in the [`tch::nn::VarStore`];
 //! - **RPN**: anchors of several sizes and aspect ratios per feature cell,
 //!   objectness and box deltas, decoding, clipping, NMS and top-k ([`glue::proposals`]);
