@@ -1,0 +1,136 @@
+//! `frugal features train|eval|proposals` on the tiny data profile.
+use std::path::Path;
+
+fn frugal(args: &[&str]) -> Result<(), String> {
+    frugal::run(std::iter::once("frugal").chain(args.iter().copied())).map_err(|e| format!("{e:#}"))
+}
+
+fn p(path: &Path) -> &str {
+    path.to_str().expect("temp paths are UTF-8")
+}
+
+#[test]
+fn train_eval_and_proposal_recall_on_the_tiny_profile() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let data = tmp.path().join("data");
+    frugal(&[
+        "data",
+        "generate",
+        "--profile",
+        "tiny",
+        "--out",
+        p(&data),
+        "--quiet",
+    ])
+    .expect("generate");
+    let out = tmp.path().join("hog");
+    frugal(&[
+        "features",
+        "train",
+        "--data",
+        p(&data),
+        "--out",
+        p(&out),
+        "--stride",
+        "1",
+        "--params",
+        "200,2,8,9",
+        "--params",
+        "<100,1,12,6>",
+        "--quiet",
+    ])
+    .expect("train");
+    let model: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("model.json")).expect("model file"))
+            .expect("json");
+    assert_eq!(model["classes"].as_array().map(Vec::len), Some(10));
+    assert_eq!(model["hogs"].as_array().map(Vec::len), Some(2));
+
+    let report = tmp.path().join("eval.json");
+    frugal(&[
+        "features",
+        "eval",
+        "--model",
+        p(&out),
+        "--data",
+        p(&data),
+        "--stride",
+        "1",
+        "--params",
+        "200,2,8,9",
+        "--params",
+        "100,1,12,6",
+        "--out",
+        p(&report),
+    ])
+    .expect("eval");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).expect("report")).expect("json");
+    let reports = v.as_array().expect("a list of reports");
+    assert_eq!(reports.len(), 2);
+    assert_eq!(reports[0]["params"], "<200,2,8,9>");
+    assert_eq!(reports[0]["per_class"].as_array().map(Vec::len), Some(10));
+    // Every sign of the split is a hit or a miss.
+    let signs: u64 = reports[0]["per_class"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["tp"].as_u64().unwrap() + c["missed"].as_u64().unwrap())
+        .sum();
+    assert!(signs > 0);
+    assert!(reports[0]["mean_ms"].as_f64().unwrap() > 0.0);
+
+    frugal(&[
+        "features",
+        "proposals",
+        "--data",
+        p(&data),
+        "--stride",
+        "1",
+        "--counts",
+        "10,100",
+    ])
+    .expect("proposals");
+}
+
+#[test]
+fn bad_inputs_are_one_line_errors() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let model = tmp.path().join("model.json");
+    std::fs::write(&model, "{\"format\": 1, \"classes\": [").unwrap();
+    let err = frugal(&[
+        "features",
+        "eval",
+        "--model",
+        p(&model),
+        "--data",
+        p(tmp.path()),
+    ])
+    .unwrap_err();
+    assert!(
+        err.contains("model.json") && err.contains("not a valid frugal-features model"),
+        "{err}"
+    );
+
+    let err = frugal(&[
+        "features",
+        "train",
+        "--data",
+        p(tmp.path()),
+        "--out",
+        p(tmp.path()),
+        "--params",
+        "1000,2,8",
+    ])
+    .unwrap_err();
+    assert!(err.contains("1000,2,8"), "{err}");
+
+    let err = frugal(&[
+        "features",
+        "proposals",
+        "--data",
+        p(&tmp.path().join("missing")),
+    ])
+    .unwrap_err();
+    assert!(err.contains("missing"), "{err}");
+}
