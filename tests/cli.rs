@@ -8,3 +8,5 @@ mod policy;
 mod data;
 #[path = "cli/fly.rs"]
 mod fly;
+#[path = "cli/features.rs"]
+mod features;

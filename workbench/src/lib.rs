@@ -10,6 +10,7 @@ pub mod bundle;
 pub mod data;
 pub mod fly;
 pub mod eval;
+pub mod features;
 pub mod policy;
 pub mod run;
 pub mod train;
@@ -35,6 +36,9 @@ enum Command {
     Train(train::TrainArgs),
     /// Score a trained CNN detector on a dataset split (mAP, P/R/F1, per scenario).
     Eval(eval::EvalArgs),
+    /// The feature-based family (EdgeBoxes + HoG + linear SVM): train, eval, proposal recall.
+    #[command(subcommand_required = true)]
+    Features(features::FeaturesArgs),
     /// Export a trained detector to ONNX (backbone + RPN graph, RoI-head graph).
     Export(bench::ExportArgs),
     /// Time a detector per frame through ONNX Runtime and libtorch, side by side.
@@ -65,6 +69,7 @@ where
         Command::Bundle(args) => bundle::run(args),
         Command::Train(args) => train::run(args),
         Command::Eval(args) => eval::run(args),
+        Command::Features(args) => features::run(args),
         Command::Export(args) => bench::export(args),
         Command::Bench(args) => bench::bench(args),
     }
