@@ -155,7 +155,8 @@ enum LightArg {
 /// built-in defaults.
 #[derive(Args, Debug, Clone, Default)]
 pub struct GenerateArgs {
-    /// A TOML or JSON config file (unknown keys are rejected); see `frugal_data::GenConfig`.
+    /// A TOML or JSON config file (unknown keys are rejected, missing keys keep the
+    /// built-in defaults; --profile is then ignored); see `frugal_data::GenConfig`.
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Output folder (replaced only once the new dataset is complete).
@@ -189,9 +190,9 @@ pub struct GenerateArgs {
 pub enum Profile {
     /// The default dataset (2,880 frames at 480×270).
     Default,
-    /// 360 frames at 320×180, for a quick look.
+    /// 216 frames at 320×180 (3 videos per level, 12 frames each), for a quick look.
     Quick,
-    /// 54 frames at 192×108, for tests.
+    /// 54 frames at 192×108 (3 videos per level, 3 frames each), for tests.
     Tiny,
 }
 
