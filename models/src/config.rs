@@ -137,14 +137,14 @@ impl ModelConfig {
             .anchor_sizes
             .iter()
             .chain(&self.anchor_ratios)
-            .any(|v| !(*v > 0.0))
+            .any(|v| v.is_nan() || *v <= 0.0)
         {
             return bad("anchor sizes and ratios must be positive".into());
         }
         if self.roi_size < 1 || self.roi_sampling_ratio < 1 || self.roi_hidden < 1 {
             return bad("roi_size, roi_sampling_ratio and roi_hidden must be >= 1".into());
         }
-        if self.rpn_channels < 1 || self.pixel_std.iter().any(|s| !(*s > 0.0)) {
+        if self.rpn_channels < 1 || self.pixel_std.iter().any(|s| s.is_nan() || *s <= 0.0) {
             return bad("rpn_channels and pixel_std must be positive".into());
         }
         if self.post_nms_test == 0 || self.post_nms_train == 0 || self.max_detections == 0 {
@@ -273,7 +273,7 @@ impl Config {
                 msg: "epochs, batch_size, rpn_batch and roi_batch must be >= 1".into(),
             });
         }
-        if !(t.lr > 0.0) {
+        if t.lr.is_nan() || t.lr <= 0.0 {
             return Err(ModelError::Config {
                 file: what.to_string(),
                 msg: "lr must be positive".into(),

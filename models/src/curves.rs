@@ -13,6 +13,9 @@ fn plot_err(path: &Path, e: impl std::fmt::Display) -> ModelError {
     }
 }
 
+/// A named loss curve: label, accessor, colour.
+type Series = (&'static str, fn(&EpochRecord) -> f64, RGBColor);
+
 fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, h: &[EpochRecord]) -> Result<(), String> {
     root.fill(&WHITE).map_err(|e| e.to_string())?;
     let (left, right) = root.split_horizontally(560);
@@ -30,7 +33,7 @@ fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, h: &[EpochRecord]) -> 
         .y_desc("loss")
         .draw()
         .map_err(|e| e.to_string())?;
-    let series: [(&str, fn(&EpochRecord) -> f64, RGBColor); 5] = [
+    let series: [Series; 5] = [
         ("total", |r| r.loss, BLACK),
         ("rpn objectness", |r| r.rpn_objectness, BLUE),
         ("rpn box", |r| r.rpn_box, CYAN),

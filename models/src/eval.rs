@@ -18,6 +18,9 @@ use std::path::Path;
 /// IoU threshold of every metric here.
 pub const IOU: f32 = 0.5;
 
+/// Each scored frame with its detections and ground truth.
+pub type FrameResults<'d> = Vec<(&'d FrameRecord, ImageResult)>;
+
 /// The evaluation of one model on one split.
 #[derive(Clone, Debug, Serialize)]
 pub struct EvalReport {
@@ -48,7 +51,7 @@ pub fn evaluate_split<'d>(
     score_threshold: f32,
     limit: usize,
     progress: bool,
-) -> Result<(EvalReport, Vec<(&'d FrameRecord, ImageResult)>), ModelError> {
+) -> Result<(EvalReport, FrameResults<'d>), ModelError> {
     let frames = crate::train::spread(ds.split(split).collect(), limit);
     if frames.is_empty() {
         return Err(ModelError::Data(format!(

@@ -196,7 +196,7 @@ pub fn detect_frames(
 }
 
 /// Up to `n` frames spread evenly over `frames` (all when `n == 0`).
-pub fn spread<'a>(frames: Vec<&'a FrameRecord>, n: usize) -> Vec<&'a FrameRecord> {
+pub fn spread(frames: Vec<&FrameRecord>, n: usize) -> Vec<&FrameRecord> {
     if n == 0 || frames.len() <= n {
         return frames;
     }
@@ -376,7 +376,7 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
                 {
                     *p += t.double_value(&[]) / batch.len() as f64;
                 }
-                total = total + l.total() / batch.len() as f64;
+                total += l.total() / batch.len() as f64;
             }
             parts[4] = parts[..4].iter().sum();
             total.backward();

@@ -97,7 +97,7 @@ fn tiny_config_overfits_a_handful_of_images() {
         opt.zero_grad();
         let mut total = Tensor::zeros([], (Kind::Float, Device::Cpu));
         for (x, (_, truth)) in tensors.iter().zip(&images) {
-            total = total + image_losses(&model, x, truth, &tc, &mut rng).total();
+            total += image_losses(&model, x, truth, &tc, &mut rng).total();
         }
         losses.push(total.double_value(&[]));
         total.backward();
