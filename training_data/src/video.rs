@@ -689,3 +689,76 @@ mod tests {
         assert!((b[1] - 1.0 / 3.0).abs() < 1e-6 && (b[2] - 1.0 / 3.0).abs() < 1e-6 && b[0] == 0.0);
     }
 }
+
+#[cfg(test)]
+mod arrow_tests {
+    use super::*;
+    use crate::{Clutter, Split};
+
+    /// In rendered frames (not just sprites), a box labelled turn_left holds an arrow
+    /// whose head (the wider white part) is on the left, and turn_right on the right:
+    /// labels are never swapped and nothing flips the image.
+    #[test]
+    fn turn_labels_match_the_arrow_direction_in_frames() {
+        let config = GenConfig {
+            frames_per_video: 30,
+            max_motion_blur_px: 0.0,
+            ..GenConfig::tiny()
+        };
+        let flat = RenderOptions {
+            flat_background: Some([0.0; 3]),
+            no_photometric: true,
+        };
+        let mut checked = [0usize; 2];
+        for id in 0..24u32 {
+            let plan = VideoPlan {
+                id,
+                clutter: Clutter::Low,
+                light: Light::Normal,
+                split: Split::Train,
+            };
+            let v = Video::new(&config, &plan, u64::from(id) + 100);
+            for index in 0..config.frames_per_video {
+                let f = v.frame(index, &flat);
+                for o in &f.objects {
+                    let left = o.class == Sign::TurnLeft.id();
+                    if !(left || o.class == Sign::TurnRight.id()) {
+                        continue;
+                    }
+                    let b = o.bbox;
+                    let inside = b.x1 > 0.0 && b.y1 > 0.0 && b.x2 < 192.0 && b.y2 < 108.0;
+                    if !inside || b.width() < 20.0 {
+                        continue;
+                    }
+                    // White pixels off the shaft's band and inside the rim belong to the
+                    // arrow head: their mean horizontal position gives the direction.
+                    let (cx, cy) = b.center();
+                    let (hw, hh) = (b.width() * 0.5, b.height() * 0.5);
+                    let (mut sum, mut n, mut weight) = (0.0f32, 0, 0.0f32);
+                    for y in b.y1 as u32..b.y2 as u32 {
+                        for x in b.x1 as u32..b.x2 as u32 {
+                            let u = (x as f32 + 0.5 - cx) / hw;
+                            let w = (y as f32 + 0.5 - cy) / hh;
+                            // Red is ~0 on the blue field and high on the white arrow.
+                            let red = (f32::from(f.rgb.get_pixel(x, y)[0]) / 255.0 - 0.2).max(0.0);
+                            if w.abs() > 0.22 && u * u + w * w < 0.75 * 0.75 {
+                                sum += u * red;
+                                n += 1;
+                                weight += red;
+                            }
+                        }
+                    }
+                    assert!(n > 0 && weight > 1.0, "no arrow head found in {b:?}");
+                    let mean = sum / weight;
+                    if left {
+                        assert!(mean < -0.1, "turn_left box {b:?}: head at {mean}");
+                    } else {
+                        assert!(mean > 0.1, "turn_right box {b:?}: head at {mean}");
+                    }
+                    checked[usize::from(!left)] += 1;
+                }
+            }
+        }
+        assert!(checked[0] >= 5 && checked[1] >= 5, "checked {checked:?}");
+    }
+}
