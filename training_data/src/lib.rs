@@ -7,6 +7,18 @@
 //! video is seeded from (global seed, video id) with ChaCha, so the same config gives
 //! the same bytes on any machine and thread count.
 //!
+//! - Classes ([`Sign`], [`classes`]): turn_left / turn_right (D1a-style arrows), stop
+//!   (B5), wait (pedestrian crossing), danger (A14), no_parking (E1), no_entry (C1),
+//!   speed_limit_30 (C43), no_right_turn (C31R), weight_limit_5t (C21); the first four
+//!   carry a [`NavAction`]. [`render_sign`] draws any of them as an RGBA sprite. No
+//!   augmentation flips images, so left and right never swap.
+//! - Layout on disk and COCO conventions: see [`dataset`] (`category_id = class id + 1`).
+//! - How boxes are made and which partly visible signs are dropped: see [`video`].
+//! - Import / export conventions (VOC 1-based corners, GTSDB inclusive corners, class
+//!   maps, splits of imported sets): see [`import`].
+//! - Output is written to `<out>.partial-XXXX` and renamed into place only when
+//!   complete; single files go through a temporary file and a rename.
+//!
 //! ```no_run
 //! use frugal_data::{Dataset, GenConfig, Split};
 //! # fn main() -> Result<(), frugal_data::DataError> {
