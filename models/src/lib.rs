@@ -39,6 +39,7 @@
 #![deny(missing_docs)]
 
 pub mod boxes;
+pub mod compress;
 pub mod config;
 pub mod curves;
 pub mod eval;

@@ -423,13 +423,43 @@ impl OrtDetector {
         frame: FrameRef<'_>,
     ) -> Result<(Vec<Detection>, StageTimes), OrtError> {
         let (w, h) = (self.spec.width as u32, self.spec.height as u32);
-        if (frame.width, frame.height) != (w, h) {
+        if frame.width == 0 || frame.height == 0 {
             return Err(OrtError::FrameSize {
                 got_w: frame.width,
                 got_h: frame.height,
                 want_w: w,
                 want_h: h,
             });
+        }
+        // frames of another size are resized (bilinear) to the exported input size,
+        // and the boxes scaled back to the frame's pixels
+        if (frame.width, frame.height) != (w, h) {
+            let t = Instant::now();
+            let small = resize_bilinear(frame, w, h);
+            let resize_ms = t.elapsed().as_secs_f64() * 1e3;
+            let resized = FrameRef::new(w, h, &small).ok_or_else(|| OrtError::FrameSize {
+                got_w: frame.width,
+                got_h: frame.height,
+                want_w: w,
+                want_h: h,
+            })?;
+            let (mut dets, mut times) = self.detect_timed(resized)?;
+            times.preprocess_ms += resize_ms;
+            let (sx, sy) = (
+                frame.width as f32 / w as f32,
+                frame.height as f32 / h as f32,
+            );
+            let (fw, fh) = (frame.width as f32, frame.height as f32);
+            for d in &mut dets {
+                let b = d.bbox;
+                d.bbox = BBox::new(
+                    (b.x1 * sx).clamp(0.0, fw),
+                    (b.y1 * sy).clamp(0.0, fh),
+                    (b.x2 * sx).clamp(0.0, fw),
+                    (b.y2 * sy).clamp(0.0, fh),
+                );
+            }
+            return Ok((dets, times));
         }
         let ms = |t: Instant| t.elapsed().as_secs_f64() * 1e3;
         let mut times = StageTimes::default();
@@ -466,6 +496,36 @@ impl OrtDetector {
     pub fn detect(&mut self, frame: FrameRef<'_>) -> Result<Vec<Detection>, OrtError> {
         self.detect_timed(frame).map(|(d, _)| d)
     }
+}
+
+/// Resize an RGB8 frame to `w × h` with bilinear interpolation (pixel centres aligned,
+/// as `align_corners = false`).
+pub fn resize_bilinear(frame: FrameRef<'_>, w: u32, h: u32) -> Vec<u8> {
+    let (sw, sh) = (frame.width as usize, frame.height as usize);
+    let (dw, dh) = (w as usize, h as usize);
+    let (fx, fy) = (sw as f32 / dw as f32, sh as f32 / dh as f32);
+    let axis = |d: usize, f: f32, n: usize| {
+        let s = ((d as f32 + 0.5) * f - 0.5).max(0.0);
+        let i0 = (s.floor() as usize).min(n - 1);
+        let i1 = (i0 + 1).min(n - 1);
+        (i0, i1, s - i0 as f32)
+    };
+    let xs: Vec<_> = (0..dw).map(|x| axis(x, fx, sw)).collect();
+    let mut out = Vec::with_capacity(dw * dh * 3);
+    for y in 0..dh {
+        let (y0, y1, ty) = axis(y, fy, sh);
+        let r0 = &frame.rgb[y0 * sw * 3..(y0 + 1) * sw * 3];
+        let r1 = &frame.rgb[y1 * sw * 3..(y1 + 1) * sw * 3];
+        for &(x0, x1, tx) in &xs {
+            for c in 0..3 {
+                let p = |r: &[u8], x: usize| f32::from(r[x * 3 + c]);
+                let top = p(r0, x0) + (p(r0, x1) - p(r0, x0)) * tx;
+                let bot = p(r1, x0) + (p(r1, x1) - p(r1, x0)) * tx;
+                out.push((top + (bot - top) * ty).round().clamp(0.0, 255.0) as u8);
+            }
+        }
+    }
+    out
 }
 
 impl Detector for OrtDetector {
@@ -557,14 +617,15 @@ mod tests {
         let msg =
             |r: Result<OrtDetector, OrtError>| r.err().map(|e| e.to_string()).unwrap_or_default();
 
-        // frame of the wrong size
+        // a frame with no pixels
         let mut ok = OrtDetector::open(dir.path(), 1).unwrap();
+        if let Some(empty) = FrameRef::new(0, 32, &[]) {
+            let e = ok.detect(empty).unwrap_err().to_string();
+            assert!(e.contains("0×32") && e.contains("32×32"), "{e}");
+        }
+        // a frame of another size is resized, not refused
         let px = vec![0u8; 40 * 32 * 3];
-        let e = ok
-            .detect(FrameRef::new(40, 32, &px).unwrap())
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("40×32") && e.contains("32×32"), "{e}");
+        assert!(ok.detect(FrameRef::new(40, 32, &px).unwrap()).is_ok());
 
         // missing file
         let empty = tempfile::tempdir().unwrap();

@@ -98,24 +98,126 @@ fn glue_metadata(model: &FasterRcnn, height: usize, width: usize) -> Vec<(&'stat
     ]
 }
 
+/// uint8 quantization parameters of one activation (`x ≈ (q - zero_point) · scale`).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ActQuant {
+    /// Step size.
+    pub scale: f32,
+    /// The uint8 value that stands for 0.
+    pub zero_point: u8,
+}
+
+/// What to quantize in a QDQ export: `activations` maps activation points (`image`,
+/// a layer's name for its ReLU output, `roi_head.pooled`) to uint8 parameters, each
+/// exported as a `QuantizeLinear` → `DequantizeLinear` pair; a layer in `layers` whose
+/// input is such a point gets int8 per-output-channel weights and int32 biases behind
+/// `DequantizeLinear` (axis 0), so ONNX Runtime fuses it into an integer kernel.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct QuantSpec {
+    /// uint8 parameters per activation point.
+    pub activations: std::collections::BTreeMap<String, ActQuant>,
+    /// Layers whose weights are quantized.
+    pub layers: std::collections::BTreeSet<String>,
+}
+
+/// A value in the graph and, when it is the output of a `DequantizeLinear`, its
+/// quantization.
+#[derive(Clone)]
+struct Val {
+    name: String,
+    q: Option<ActQuant>,
+}
+
+/// Insert `QuantizeLinear` → `DequantizeLinear` at activation point `point` when the
+/// spec quantizes it.
+fn qdq(g: &mut GraphBuilder, quant: Option<&QuantSpec>, x: Val, point: &str) -> Val {
+    let Some(p) = quant.and_then(|q| q.activations.get(point)).copied() else {
+        return x;
+    };
+    let s = g.constant_f32(&format!("{point}.act_scale"), &[], &[p.scale]);
+    let z = g.constant_u8(&format!("{point}.act_zero_point"), &[], &[p.zero_point]);
+    let q = g.node(
+        "QuantizeLinear",
+        &format!("{point}.quant"),
+        &[&x.name, &s, &z],
+        vec![],
+    );
+    let d = g.node(
+        "DequantizeLinear",
+        &format!("{point}.dequant"),
+        &[&q, &s, &z],
+        vec![],
+    );
+    Val {
+        name: d,
+        q: Some(p),
+    }
+}
+
+/// Weight and bias inputs of layer `prefix`: fp32 initializers, or — when the layer is
+/// quantized and its input is a quantized value — int8 per-channel weights and int32
+/// biases (scale `input_scale · weight_scale[c]`) behind `DequantizeLinear`.
+fn layer_params(
+    g: &mut GraphBuilder,
+    vars: &HashMap<String, Tensor>,
+    x: &Val,
+    prefix: &str,
+    quant: Option<&QuantSpec>,
+) -> Result<(String, String, Vec<i64>), ModelError> {
+    let (wshape, w) = weights(vars, &format!("{prefix}.weight"))?;
+    let (bshape, b) = weights(vars, &format!("{prefix}.bias"))?;
+    let input_q =
+        x.q.filter(|_| quant.is_some_and(|q| q.layers.contains(prefix)));
+    let Some(iq) = input_q else {
+        let wn = g.constant_f32(&format!("{prefix}.weight"), &wshape, &w);
+        let bn = g.constant_f32(&format!("{prefix}.bias"), &bshape, &b);
+        return Ok((wn, bn, wshape));
+    };
+    let out = wshape.first().copied().unwrap_or(1) as usize;
+    let (qw, ws) = crate::compress::quant::quantize_weights_per_channel(&w, out);
+    let bs: Vec<f32> = ws.iter().map(|s| s * iq.scale).collect();
+    let qb: Vec<i32> = b
+        .iter()
+        .zip(&bs)
+        .map(|(v, s)| (f64::from(*v) / f64::from(*s)).round() as i32)
+        .collect();
+    let o = [out as i64];
+    let wq = g.constant_i8(&format!("{prefix}.weight_quantized"), &wshape, &qw);
+    let wsn = g.constant_f32(&format!("{prefix}.weight_scale"), &o, &ws);
+    let wz = g.constant_i8(&format!("{prefix}.weight_zero_point"), &o, &vec![0; out]);
+    let bq = g.constant_i32(&format!("{prefix}.bias_quantized"), &bshape, &qb);
+    let bsn = g.constant_f32(&format!("{prefix}.bias_scale"), &o, &bs);
+    let wn = g.node(
+        "DequantizeLinear",
+        &format!("{prefix}.weight"),
+        &[&wq, &wsn, &wz],
+        vec![attr_int("axis", 0)],
+    );
+    let bn = g.node(
+        "DequantizeLinear",
+        &format!("{prefix}.bias"),
+        &[&bq, &bsn],
+        vec![attr_int("axis", 0)],
+    );
+    Ok((wn, bn, wshape))
+}
+
 /// A 3×3 (or 1×1) conv with padding `k / 2` from the VarStore layer `prefix`.
 fn conv(
     g: &mut GraphBuilder,
     vars: &HashMap<String, Tensor>,
-    x: &str,
+    x: &Val,
     prefix: &str,
     stride: i64,
+    quant: Option<&QuantSpec>,
 ) -> Result<String, ModelError> {
-    let (wshape, w) = weights(vars, &format!("{prefix}.weight"))?;
-    let (bshape, b) = weights(vars, &format!("{prefix}.bias"))?;
+    let (wn, bn, wshape) = layer_params(g, vars, x, prefix, quant)?;
     let k = wshape.get(2).copied().unwrap_or(1);
-    let wn = g.constant_f32(&format!("{prefix}.weight"), &wshape, &w);
-    let bn = g.constant_f32(&format!("{prefix}.bias"), &bshape, &b);
     let p = k / 2;
     Ok(g.node(
         "Conv",
         prefix,
-        &[x, &wn, &bn],
+        &[&x.name, &wn, &bn],
         vec![
             attr_ints("kernel_shape", &[k, k]),
             attr_ints("strides", &[stride, stride]),
@@ -128,14 +230,21 @@ fn conv(
 fn linear(
     g: &mut GraphBuilder,
     vars: &HashMap<String, Tensor>,
-    x: &str,
+    x: &Val,
     prefix: &str,
+    quant: Option<&QuantSpec>,
 ) -> Result<String, ModelError> {
-    let (wshape, w) = weights(vars, &format!("{prefix}.weight"))?;
-    let (bshape, b) = weights(vars, &format!("{prefix}.bias"))?;
-    let wn = g.constant_f32(&format!("{prefix}.weight"), &wshape, &w);
-    let bn = g.constant_f32(&format!("{prefix}.bias"), &bshape, &b);
-    Ok(g.node("Gemm", prefix, &[x, &wn, &bn], vec![attr_int("transB", 1)]))
+    let (wn, bn, _) = layer_params(g, vars, x, prefix, quant)?;
+    Ok(g.node(
+        "Gemm",
+        prefix,
+        &[&x.name, &wn, &bn],
+        vec![attr_int("transB", 1)],
+    ))
+}
+
+fn plain(name: String) -> Val {
+    Val { name, q: None }
 }
 
 /// Build both graphs for `height × width` input frames.
@@ -143,6 +252,17 @@ pub fn detector_graphs(
     model: &FasterRcnn,
     height: usize,
     width: usize,
+) -> Result<DetectorGraphs, ModelError> {
+    detector_graphs_quantized(model, height, width, None)
+}
+
+/// Build both graphs for `height × width` input frames, as QDQ graphs when `quant` is
+/// given (see [`QuantSpec`]).
+pub fn detector_graphs_quantized(
+    model: &FasterRcnn,
+    height: usize,
+    width: usize,
+    quant: Option<&QuantSpec>,
 ) -> Result<DetectorGraphs, ModelError> {
     let cfg = model.config();
     let vars = model.var_store().variables();
@@ -161,26 +281,27 @@ pub fn detector_graphs(
             (width as i64).into(),
         ],
     );
-    let mut x = image;
+    let mut x = qdq(&mut g, quant, plain(image), "image");
     for (i, block) in cfg.backbone.iter().enumerate() {
         for j in 0..block.convs {
             let stride = if j == 0 { block.stride } else { 1 };
-            let y = conv(
-                &mut g,
-                &vars,
-                &x,
-                &format!("backbone.block{i}.conv{j}"),
-                stride,
-            )?;
-            x = g.node("Relu", &format!("backbone.block{i}.relu{j}"), &[&y], vec![]);
+            let name = format!("backbone.block{i}.conv{j}");
+            let y = conv(&mut g, &vars, &x, &name, stride, quant)?;
+            let r = g.node("Relu", &format!("backbone.block{i}.relu{j}"), &[&y], vec![]);
+            x = qdq(&mut g, quant, plain(r), &name);
         }
     }
-    let features = g.node("Identity", "features", &[&x], vec![]);
-    let h = conv(&mut g, &vars, &features, "rpn.conv", 1)?;
+    let features = g.node("Identity", "features", &[&x.name], vec![]);
+    let fv = Val {
+        name: features.clone(),
+        q: x.q,
+    };
+    let h = conv(&mut g, &vars, &fv, "rpn.conv", 1, quant)?;
     let h = g.node("Relu", "rpn.relu", &[&h], vec![]);
-    let obj = conv(&mut g, &vars, &h, "rpn.objectness", 1)?;
+    let h = qdq(&mut g, quant, plain(h), "rpn.conv");
+    let obj = conv(&mut g, &vars, &h, "rpn.objectness", 1, quant)?;
     let obj = g.node("Identity", "objectness", &[&obj], vec![]);
-    let del = conv(&mut g, &vars, &h, "rpn.deltas", 1)?;
+    let del = conv(&mut g, &vars, &h, "rpn.deltas", 1, quant)?;
     let del = g.node("Identity", "deltas", &[&del], vec![]);
     let (fh, fw) = (fh as i64, fw as i64);
     g.output(
@@ -227,13 +348,16 @@ pub fn detector_graphs(
         &[&pooled],
         vec![attr_int("axis", 1)],
     );
-    let h = linear(&mut g, &vars, &flat, "roi_head.fc1")?;
+    let flat = qdq(&mut g, quant, plain(flat), "roi_head.pooled");
+    let h = linear(&mut g, &vars, &flat, "roi_head.fc1", quant)?;
     let h = g.node("Relu", "roi_head.relu1", &[&h], vec![]);
-    let h = linear(&mut g, &vars, &h, "roi_head.fc2")?;
+    let h = qdq(&mut g, quant, plain(h), "roi_head.fc1");
+    let h = linear(&mut g, &vars, &h, "roi_head.fc2", quant)?;
     let h = g.node("Relu", "roi_head.relu2", &[&h], vec![]);
-    let logits = linear(&mut g, &vars, &h, "roi_head.class_logits")?;
+    let h = qdq(&mut g, quant, plain(h), "roi_head.fc2");
+    let logits = linear(&mut g, &vars, &h, "roi_head.class_logits", quant)?;
     let logits = g.node("Identity", "class_logits", &[&logits], vec![]);
-    let deltas = linear(&mut g, &vars, &h, "roi_head.box_deltas")?;
+    let deltas = linear(&mut g, &vars, &h, "roi_head.box_deltas", quant)?;
     let deltas = g.node("Identity", "box_deltas", &[&deltas], vec![]);
     let k = cfg.num_classes as i64;
     g.output(
@@ -264,7 +388,18 @@ pub fn export_detector(
     width: usize,
     dir: &Path,
 ) -> Result<ExportedFiles, ModelError> {
-    let graphs = detector_graphs(model, height, width)?;
+    export_detector_quantized(model, height, width, None, dir)
+}
+
+/// As [`export_detector`], as QDQ graphs when `quant` is given.
+pub fn export_detector_quantized(
+    model: &FasterRcnn,
+    height: usize,
+    width: usize,
+    quant: Option<&QuantSpec>,
+    dir: &Path,
+) -> Result<ExportedFiles, ModelError> {
+    let graphs = detector_graphs_quantized(model, height, width, quant)?;
     let files = ExportedFiles {
         backbone_rpn: dir.join(BACKBONE_RPN_FILE),
         roi_head: dir.join(ROI_HEAD_FILE),

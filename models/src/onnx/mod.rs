@@ -13,8 +13,8 @@ pub mod proto;
 pub use builder::{Dim, GraphBuilder, OPSET, attr_float, attr_int, attr_ints, attr_string};
 pub use executor::{GlueSpec, OrtDetector, OrtError, StageTimes};
 pub use export::{
-    BACKBONE_RPN_FILE, DetectorGraphs, ExportedFiles, ROI_HEAD_FILE, detector_graphs,
-    export_detector,
+    ActQuant, BACKBONE_RPN_FILE, DetectorGraphs, ExportedFiles, QuantSpec, ROI_HEAD_FILE,
+    detector_graphs, detector_graphs_quantized, export_detector, export_detector_quantized,
 };
 pub use parity::{ParityReport, parity};
 
