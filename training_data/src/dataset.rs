@@ -148,7 +148,7 @@ pub struct FrameRecord {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
 pub enum Source {
-    /// Made by [`crate::generate`].
+    /// Made by [`crate::generate`](fn@crate::generate).
     Synthetic {
         /// The generator's configuration.
         config: GenConfig,

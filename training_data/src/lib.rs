@@ -1,13 +1,13 @@
 //! Synthetic drone videos of signs in warehouse-like scenes, with exact boxes, and
 //! import / export of real datasets (COCO JSON, Pascal VOC XML, GTSDB-style CSV).
 //!
-//! Real drone footage is not available, so [`generate`] renders stand-in videos: a
+//! Real drone footage is not available, so [`generate`](fn@generate) renders stand-in videos: a
 //! camera drifting and shaking through a warehouse aisle, approaching and passing
 //! 1-3 signs at a time, at three clutter levels and two illumination levels. Every
 //! video is seeded from (global seed, video id) with ChaCha, so the same config gives
 //! the same bytes on any machine and thread count.
 //!
-//! - Classes ([`Sign`], [`classes`]): turn_left / turn_right (D1a-style arrows), stop
+//! - Classes ([`Sign`], [`classes`](fn@classes)): turn_left / turn_right (D1a-style arrows), stop
 //!   (B5), wait (pedestrian crossing), danger (A14), no_parking (E1), no_entry (C1),
 //!   speed_limit_30 (C43), no_right_turn (C31R), weight_limit_5t (C21); the first four
 //!   carry a [`NavAction`]. [`render_sign`] draws any of them as an RGBA sprite. No
@@ -15,7 +15,7 @@
 //! - Layout on disk and COCO conventions: see [`dataset`] (`category_id = class id + 1`).
 //! - How boxes are made and which partly visible signs are dropped: see [`video`].
 //! - Import / export conventions (VOC 1-based corners, GTSDB inclusive corners, class
-//!   maps, splits of imported sets): see [`import`].
+//!   maps, splits of imported sets): see [`import`](mod@import).
 //! - Output is written to `<out>.partial-XXXX` and renamed into place only when
 //!   complete; single files go through a temporary file and a rename.
 //!
