@@ -241,6 +241,18 @@ struct Coverage {
     depth_at_center: f64,
 }
 
+/// What one column's ray hit.
+struct Column {
+    d: (f64, f64),
+    depth: f64,
+    y_top: f64,
+    y_bot: f64,
+    face_hash: u64,
+    kind: WallKind,
+    light: f32,
+    u: f32,
+}
+
 /// The renderer of one maze: owns the boards, a float frame buffer and a z-buffer.
 pub struct Renderer {
     maze: Maze,
@@ -250,6 +262,7 @@ pub struct Renderer {
     light: Light,
     buf: Vec<[f32; 3]>,
     zbuf: Vec<f64>,
+    cols: Vec<Column>,
 }
 
 const NEAR: f64 = 0.05;
@@ -266,6 +279,7 @@ impl Renderer {
             seed,
             buf: vec![[0.0; 3]; n],
             zbuf: vec![f64::INFINITY; camera.width as usize],
+            cols: Vec::with_capacity(camera.width as usize),
         }
     }
 
@@ -302,47 +316,59 @@ impl Renderer {
             (fwd.0 + right.0 * cam_x, fwd.1 + right.1 * cam_x)
         };
 
-        // Walls, floor and ceiling, one column at a time.
+        // Walls: one ray per column (DDA), kept for the row-major pass and the sprites.
+        self.cols.clear();
         for x in 0..w {
             let d = ray(x);
             let hit = cast(&self.maze, pose.x / cell, pose.y / cell, d);
             let depth = hit.dist * cell;
             self.zbuf[x] = depth;
-            let y_top = cy - f * (wall_h - alt) / depth;
-            let y_bot = cy + f * alt / depth;
             let face_hash = texture::hash_n(&[hit.col, hit.row, hit.face as i64, self.seed as i64]);
-            let kind = WallKind::of(face_hash);
             let shade = if hit.face == Dir::East || hit.face == Dir::West {
                 0.86
             } else {
                 1.0
             };
-            let wall_light = self.light.at(depth as f32) * shade;
-            let u = (hit.along * cell) as f32;
-            for y in 0..h {
-                let yc = y as f64 + 0.5;
-                let colour = if yc < y_top {
-                    let dist = (wall_h - alt) * f / (cy - yc);
-                    let (wx, wy) = (pose.x + d.0 * dist, pose.y + d.1 * dist);
+            self.cols.push(Column {
+                d,
+                depth,
+                y_top: cy - f * (wall_h - alt) / depth,
+                y_bot: cy + f * alt / depth,
+                face_hash,
+                kind: WallKind::of(face_hash),
+                light: self.light.at(depth as f32) * shade,
+                u: (hit.along * cell) as f32,
+            });
+        }
+
+        // Walls, floor and ceiling, row by row (cache-friendly writes). Floor and
+        // ceiling distances depend only on the row.
+        for y in 0..h {
+            let yc = y as f64 + 0.5;
+            let ceil_dist = if yc < cy {
+                (wall_h - alt) * f / (cy - yc)
+            } else {
+                0.0
+            };
+            let floor_dist = if yc > cy { alt * f / (yc - cy) } else { 0.0 };
+            let ceil_light = self.light.at(ceil_dist as f32);
+            let floor_light = self.light.at(floor_dist as f32);
+            let row = &mut self.buf[y * w..(y + 1) * w];
+            for (px, col) in row.iter_mut().zip(&self.cols) {
+                *px = if yc < col.y_top {
+                    let (wx, wy) = (pose.x + col.d.0 * ceil_dist, pose.y + col.d.1 * ceil_dist);
                     let (c, lamp) = texture::ceiling(wx as f32, wy as f32, cell as f32);
-                    let l = if lamp {
-                        1.0
-                    } else {
-                        self.light.at(dist as f32)
-                    };
+                    let l = if lamp { 1.0 } else { ceil_light };
                     c.map(|v| v * l)
-                } else if yc < y_bot {
-                    let z = alt + (cy - yc) * depth / f;
-                    let c = texture::wall(kind, face_hash, u, z as f32);
-                    c.map(|v| v * wall_light)
+                } else if yc < col.y_bot {
+                    let z = alt + (cy - yc) * col.depth / f;
+                    let c = texture::wall(col.kind, col.face_hash, col.u, z as f32);
+                    c.map(|v| v * col.light)
                 } else {
-                    let dist = alt * f / (yc - cy);
-                    let (wx, wy) = (pose.x + d.0 * dist, pose.y + d.1 * dist);
-                    let c = texture::floor(wx as f32, wy as f32, self.stripe(wx, wy));
-                    let l = self.light.at(dist as f32);
-                    c.map(|v| v * l)
+                    let (wx, wy) = (pose.x + col.d.0 * floor_dist, pose.y + col.d.1 * floor_dist);
+                    let c = texture::floor(wx as f32, wy as f32, stripe(&self.maze, wx, wy));
+                    c.map(|v| v * floor_light)
                 };
-                self.buf[y * w + x] = colour;
             }
         }
 
@@ -425,19 +451,6 @@ impl Renderer {
         truth
     }
 
-    /// True where the floor point lies on the yellow band along a wall.
-    fn stripe(&self, x: f64, y: f64) -> bool {
-        let cell = self.maze.cell;
-        let (c, r) = ((x / cell).floor(), (y / cell).floor());
-        let (fx, fy) = (x - c * cell, y - r * cell);
-        let (c, r) = (c as i64, r as i64);
-        let band = |d: f64| (0.15..0.27).contains(&d);
-        (band(fx) && self.maze.is_wall(c - 1, r))
-            || (band(cell - fx) && self.maze.is_wall(c + 1, r))
-            || (band(fy) && self.maze.is_wall(c, r - 1))
-            || (band(cell - fy) && self.maze.is_wall(c, r + 1))
-    }
-
     /// Photometric pass: gain, contrast, tint, vignette, flicker and sensor noise.
     fn finish(&self, frame: u64, rgb: &mut Vec<u8>) {
         let (w, h) = (self.camera.width as usize, self.camera.height as usize);
@@ -448,23 +461,45 @@ impl Renderer {
         let (cx, cy) = (w as f32 / 2.0, h as f32 / 2.0);
         let r2max = cx * cx + cy * cy;
         let mut state = fh | 1;
-        for y in 0..h {
-            for x in 0..w {
+        let k = [
+            gain * l.tint[0] * l.contrast,
+            gain * l.tint[1] * l.contrast,
+            gain * l.tint[2] * l.contrast,
+        ];
+        let b = [
+            gain * l.tint[0] * 0.5 * (1.0 - l.contrast),
+            gain * l.tint[1] * 0.5 * (1.0 - l.contrast),
+            gain * l.tint[2] * 0.5 * (1.0 - l.contrast),
+        ];
+        let noise = 2.45 * l.noise; // triangular noise, variance-matched
+        let vig_k = l.vignette / r2max;
+        let dx2: Vec<f32> = (0..w)
+            .map(|x| {
                 let dx = x as f32 + 0.5 - cx;
-                let dy = y as f32 + 0.5 - cy;
-                let vig = 1.0 - l.vignette * (dx * dx + dy * dy) / r2max;
-                let p = self.buf[y * w + x];
+                dx * dx
+            })
+            .collect();
+        for (y, (out_row, in_row)) in rgb
+            .chunks_exact_mut(w * 3)
+            .zip(self.buf.chunks_exact(w))
+            .enumerate()
+        {
+            let dy = y as f32 + 0.5 - cy;
+            let dy2 = dy * dy;
+            for ((out, p), dx2) in out_row.chunks_exact_mut(3).zip(in_row).zip(&dx2) {
+                // Gain, tint and contrast about mid-grey, then vignetting, in 0..255.
+                let vig = (1.0 - vig_k * (dx2 + dy2)) * 255.0;
                 // xorshift64 stream: three triangular noise samples per pixel.
                 state ^= state << 13;
                 state ^= state >> 7;
                 state ^= state << 17;
                 let bits = state;
-                for k in 0..3 {
-                    let a = ((bits >> (k * 16)) & 0xff) as f32;
-                    let b = ((bits >> (k * 16 + 8)) & 0xff) as f32;
-                    let n = (a + b - 255.0) / 255.0 * 2.45 * l.noise;
-                    let v = ((p[k] - 0.5) * l.contrast + 0.5) * gain * l.tint[k] * vig + n;
-                    rgb[(y * w + x) * 3 + k] = (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+                for (c, o) in out.iter_mut().enumerate() {
+                    let a = ((bits >> (c * 16)) & 0xff) as f32;
+                    let bb = ((bits >> (c * 16 + 8)) & 0xff) as f32;
+                    let n = (a + bb - 255.0) * noise;
+                    let v = (p[c] * k[c] + b[c]) * vig + n;
+                    *o = (v.clamp(0.0, 255.0) + 0.5) as u8;
                 }
             }
         }
@@ -554,6 +589,23 @@ fn draw_sprite(
         c.depth_at_center = mid.1;
     }
     cov
+}
+
+/// True where the floor point lies on the yellow band along a wall.
+fn stripe(maze: &Maze, x: f64, y: f64) -> bool {
+    let cell = maze.cell;
+    let (c, r) = ((x / cell).floor(), (y / cell).floor());
+    let (fx, fy) = (x - c * cell, y - r * cell);
+    let band = |d: f64| (0.15..0.27).contains(&d);
+    let (near_x, near_y) = (band(fx) || band(cell - fx), band(fy) || band(cell - fy));
+    if !near_x && !near_y {
+        return false;
+    }
+    let (c, r) = (c as i64, r as i64);
+    (band(fx) && maze.is_wall(c - 1, r))
+        || (band(cell - fx) && maze.is_wall(c + 1, r))
+        || (band(fy) && maze.is_wall(c, r - 1))
+        || (band(cell - fy) && maze.is_wall(c, r + 1))
 }
 
 /// Bilinear RGBA sample of a sprite at `(u, v)` in `[0, 1)²`; colour and alpha in 0..1.

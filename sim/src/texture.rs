@@ -17,6 +17,29 @@ pub fn hash_n(parts: &[i64]) -> u64 {
     })
 }
 
+/// Hash of three integers (one mixing round; for per-pixel texture lookups).
+#[inline]
+pub fn hash3(a: i64, b: i64, c: i64) -> u64 {
+    hash(
+        (a as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)
+            ^ (b as u64).wrapping_mul(0xc2b2_ae3d_27d4_eb4f)
+            ^ (c as u64).wrapping_mul(0x1656_67b1_9e37_79f9),
+    )
+}
+
+/// `x.floor()` without a libm call (baseline x86-64 has no rounding instruction).
+#[inline]
+pub fn ffloor(x: f32) -> f32 {
+    let t = x as i32 as f32;
+    if t > x { t - 1.0 } else { t }
+}
+
+/// `x.rem_euclid(m)` for `m > 0`, without libm calls.
+#[inline]
+pub fn fmodp(x: f32, m: f32) -> f32 {
+    x - ffloor(x / m) * m
+}
+
 /// A hash mapped to `[0, 1)`.
 pub fn unit(h: u64) -> f32 {
     (h >> 40) as f32 / (1u64 << 24) as f32
@@ -56,20 +79,20 @@ pub fn wall(kind: WallKind, face_hash: u64, u: f32, z: f32) -> [f32; 3] {
     match kind {
         WallKind::Shelving => {
             let bay = 1.5;
-            let ub = u.rem_euclid(bay);
+            let ub = fmodp(u, bay);
             if ub < 0.08 {
                 return [0.16, 0.28, 0.55]; // upright
             }
             let level_h = 1.1;
-            let level = (z / level_h).floor();
+            let level = ffloor(z / level_h);
             let zl = z - level * level_h;
             if zl < 0.1 {
                 return [0.85, 0.43, 0.08]; // beam
             }
             let slot_w = 0.5;
-            let slot = ((u - 0.08) / slot_w).floor();
+            let slot = ffloor((u - 0.08) / slot_w);
             let us = (u - 0.08) - slot * slot_w;
-            let h = hash_n(&[face_hash as i64, level as i64, slot as i64]);
+            let h = hash3(face_hash as i64, level as i64, slot as i64);
             let filled = unit(h) < 0.75;
             let top = 0.1 + (0.45 + 0.5 * unit(hash(h))) * (level_h - 0.1);
             if !filled || zl > top || !(0.03..slot_w - 0.03).contains(&us) {
@@ -84,7 +107,7 @@ pub fn wall(kind: WallKind, face_hash: u64, u: f32, z: f32) -> [f32; 3] {
         }
         WallKind::Boxes => {
             let row_h = 0.45;
-            let row = (z / row_h).floor();
+            let row = ffloor(z / row_h);
             let zr = z - row * row_h;
             let box_w = 0.6;
             let shift = if (row as i64) % 2 == 0 {
@@ -92,12 +115,12 @@ pub fn wall(kind: WallKind, face_hash: u64, u: f32, z: f32) -> [f32; 3] {
             } else {
                 box_w / 2.0
             };
-            let col = ((u + shift) / box_w).floor();
+            let col = ffloor((u + shift) / box_w);
             let ub = (u + shift) - col * box_w;
             if zr < 0.015 || ub < 0.015 {
                 return scale(CARDBOARD, 0.35);
             }
-            let h = hash_n(&[face_hash as i64, row as i64, col as i64]);
+            let h = hash3(face_hash as i64, row as i64, col as i64);
             let k = 0.75 + 0.4 * unit(h);
             let tint = 0.06 * (unit(hash(h)) - 0.5);
             let mut c = [
@@ -114,14 +137,14 @@ pub fn wall(kind: WallKind, face_hash: u64, u: f32, z: f32) -> [f32; 3] {
             c
         }
         WallKind::Panels => {
-            let seam = u.rem_euclid(1.0) < 0.025;
+            let seam = fmodp(u, 1.0) < 0.025;
             if seam {
                 return [0.3, 0.31, 0.33];
             }
             if (0.95..1.1).contains(&z) {
                 return [0.86, 0.7, 0.12]; // safety band
             }
-            let ridge = 0.9 + 0.1 * (u * std::f32::consts::TAU / 0.12).sin();
+            let ridge = 0.9 + 0.1 * tri(u / 0.12);
             let base = if z < 0.3 {
                 0.4
             } else {
@@ -132,19 +155,25 @@ pub fn wall(kind: WallKind, face_hash: u64, u: f32, z: f32) -> [f32; 3] {
     }
 }
 
+/// A triangle wave in `[-1, 1]` with period 1 (cheaper than a sine, looks alike).
+#[inline]
+fn tri(x: f32) -> f32 {
+    4.0 * (fmodp(x, 1.0) - 0.5).abs() - 1.0
+}
+
 /// Concrete floor at world `(x, y)`; `stripe` marks the yellow band along walls.
 pub fn floor(x: f32, y: f32, stripe: bool) -> [f32; 3] {
     if stripe {
         return [0.78, 0.66, 0.12];
     }
     let tile = 1.0;
-    let (tx, ty) = ((x / tile).floor(), (y / tile).floor());
+    let (tx, ty) = (ffloor(x / tile), ffloor(y / tile));
     let (fx, fy) = (x - tx * tile, y - ty * tile);
     if fx < 0.015 || fy < 0.015 {
         return [0.3, 0.3, 0.3];
     }
-    let h = hash_n(&[tx as i64, ty as i64, 99]);
-    let speck = unit(hash_n(&[(x * 20.0) as i64, (y * 20.0) as i64]));
+    let h = hash3(tx as i64, ty as i64, 99);
+    let speck = unit(hash3((x * 20.0) as i64, (y * 20.0) as i64, 7));
     let v = 0.46 + 0.06 * unit(h) + 0.04 * speck;
     [v, v, v * 0.97]
 }
@@ -152,14 +181,12 @@ pub fn floor(x: f32, y: f32, stripe: bool) -> [f32; 3] {
 /// Ceiling at world `(x, y)`; `cell` is the cell size. Returns the colour and whether
 /// it is a lamp (emissive, not dimmed by distance).
 pub fn ceiling(x: f32, y: f32, cell: f32) -> ([f32; 3], bool) {
-    let (fx, fy) = (
-        x.rem_euclid(cell) - cell / 2.0,
-        y.rem_euclid(cell) - cell / 2.0,
-    );
+    let (mx, my) = (fmodp(x, cell), fmodp(y, cell));
+    let (fx, fy) = (mx - cell / 2.0, my - cell / 2.0);
     if fx.abs() < 0.25 && fy.abs() < 0.6 {
         return ([0.97, 0.97, 0.92], true);
     }
-    let beam = x.rem_euclid(cell) < 0.06 || y.rem_euclid(cell) < 0.06;
+    let beam = mx < 0.06 || my < 0.06;
     (
         if beam {
             [0.16, 0.16, 0.18]
