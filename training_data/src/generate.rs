@@ -74,7 +74,9 @@ fn render_video(
 }
 
 /// Generate the synthetic dataset described by `config` into `out` (replacing what is
-/// there only once the new dataset is complete). With `progress`, a progress bar is
+/// there only once the new dataset is complete). Besides frames, annotations and the
+/// manifest (which records the config and its hash), `out/config.toml` holds the config
+/// so that `frugal data generate --config out/config.toml` reproduces the dataset. With `progress`, a progress bar is
 /// drawn on stderr.
 pub fn generate(config: &GenConfig, out: &Path, progress: bool) -> Result<Dataset, DataError> {
     config.validate(Path::new("<config>"))?;
@@ -117,6 +119,13 @@ pub fn generate(config: &GenConfig, out: &Path, progress: bool) -> Result<Datase
             generator_version: GENERATOR_VERSION,
         },
     )?;
+    // The config again as TOML, ready for `frugal data generate --config`.
+    let config_path = partial.path().join("config.toml");
+    let toml = toml::to_string(config).map_err(|e| DataError::Config {
+        path: config_path.clone(),
+        message: e.to_string(),
+    })?;
+    crate::dataset::write_atomic(&config_path, toml.as_bytes())?;
     partial.commit()?;
     dataset.root = out.to_owned();
     Ok(dataset)

@@ -72,8 +72,8 @@ fn same_seed_gives_identical_bytes_on_any_thread_count_and_another_seed_does_not
     let (fa, fb, fc) = (files(&a), files(&b), files(&c));
     assert_eq!(
         fa.len(),
-        1 + 3 + 18 * 2,
-        "manifest, 3 COCO files, 36 frames"
+        2 + 3 + 18 * 2,
+        "manifest, config, 3 COCO files, 36 frames"
     );
     assert_eq!(fa, fb, "same seed and config must give the same bytes");
     assert_eq!(fa.keys().collect::<Vec<_>>(), fc.keys().collect::<Vec<_>>());
@@ -83,6 +83,9 @@ fn same_seed_gives_identical_bytes_on_any_thread_count_and_another_seed_does_not
         "another seed changes the frames ({differing} files differ)"
     );
     assert!(leftovers(dir.path()).is_empty());
+    // The saved config reproduces the dataset.
+    let saved = GenConfig::from_file(&a.join("config.toml")).expect("saved config");
+    assert_eq!(saved, config);
 }
 
 #[test]
