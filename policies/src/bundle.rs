@@ -12,7 +12,9 @@
 //! The format has one file slot per variant; an exported CNN has two graphs. The slot
 //! holds the backbone graph (`backbone_rpn.onnx`, or the first graph by name) and
 //! every further graph is listed in the metadata as `file:<relative path>` =
-//! `<sha256 hex>`; `verify` checks both kinds.
+//! `<sha256 hex>`; `verify` checks both kinds. A HoG variant's feature model is
+//! copied once to `hog/<file>` (a `file:` entry) and the variant is described by the
+//! metadata entry `hog:<variant>` = `<file> <parameter tuple>`.
 
 use crate::error::{PolicyError, Result};
 use crate::train::TrainedPolicy;
@@ -167,8 +169,24 @@ pub fn write_bundle(policy: &TrainedPolicy, thresholds: Thresholds, out: &Path) 
     let partial = frugal_data::dataset::PartialDir::new(out)?;
     let root = partial.path().to_owned();
     let mut files = Vec::with_capacity(policy.variants.len());
+    let mut hog_meta: Vec<(String, String)> = Vec::new();
+    let mut hog_files: Vec<(String, [u8; 32])> = Vec::new();
     for v in &policy.variants {
         let mut vf = VariantFiles::default();
+        if let VariantSource::Hog { model, params } = &v.source {
+            let name = model
+                .file_name()
+                .map(|n| safe_name(&n.to_string_lossy()))
+                .unwrap_or_else(|| "model.json".into());
+            let rel = format!("hog/{name}");
+            if !hog_files.iter().any(|(f, _)| *f == rel) {
+                std::fs::create_dir_all(root.join("hog"))
+                    .map_err(|e| PolicyError::io(root.join("hog"), e))?;
+                std::fs::copy(model, root.join(&rel)).map_err(|e| PolicyError::io(model, e))?;
+                hog_files.push((rel.clone(), sha256_file(&root.join(&rel))?));
+            }
+            hog_meta.push((format!("hog:{}", v.name), format!("{rel} {params}")));
+        }
         if let VariantSource::Onnx { dir } = &v.source {
             let entries = std::fs::read_dir(dir).map_err(|e| PolicyError::io(dir, e))?;
             let mut graphs: Vec<PathBuf> = entries
@@ -204,6 +222,11 @@ pub fn write_bundle(policy: &TrainedPolicy, thresholds: Thresholds, out: &Path) 
         }
         files.push(vf);
     }
+    if let Some(first) = files.first_mut() {
+        first.extra.extend(hog_files);
+    }
+    let mut metadata = policy_metadata(policy);
+    metadata.extend(hog_meta);
     let bytes = bundle_bytes(
         &policy.families,
         &policy.variants,
@@ -211,7 +234,7 @@ pub fn write_bundle(policy: &TrainedPolicy, thresholds: Thresholds, out: &Path) 
         thresholds,
         policy.initial,
         &policy.actions,
-        &policy_metadata(policy),
+        &metadata,
     )?;
     frugal_data::dataset::write_atomic(&root.join(BUNDLE_FILE), &bytes)?;
     partial.commit()?;

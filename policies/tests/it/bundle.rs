@@ -28,6 +28,12 @@ fn policy_with_files(
     std::fs::write(onnx.join("backbone_rpn.onnx"), b"fake backbone graph").unwrap();
     std::fs::write(onnx.join("roi_head.onnx"), b"fake head graph").unwrap();
     p.variants[1].source = VariantSource::Onnx { dir: onnx };
+    let hog = dir.join("features-model.json");
+    std::fs::write(&hog, b"{\"fake\": \"feature model\"}").unwrap();
+    p.variants[0].source = VariantSource::Hog {
+        model: hog,
+        params: "200,2,8,9".into(),
+    };
     (log, frames, p)
 }
 
@@ -40,7 +46,8 @@ fn written_bundle_verifies_and_the_runtime_decides_as_the_replay() {
     let file = write_bundle(&policy, cfg.thresholds(), &out).unwrap();
     assert_eq!(file, out.join(BUNDLE_FILE));
     let checked = verify(&out).unwrap();
-    assert_eq!(checked.len(), 2, "{checked:?}");
+    assert_eq!(checked.len(), 3, "{checked:?}");
+    assert!(out.join("hog/features-model.json").is_file());
     assert!(out.join("onnx/expensive/roi_head.onnx").is_file());
 
     let bytes = read_bundle(&out).unwrap();
@@ -55,6 +62,10 @@ fn written_bundle_verifies_and_the_runtime_decides_as_the_replay() {
             );
         }
     }
+    assert_eq!(
+        b.metadata_get("hog:cheap"),
+        Some("hog/features-model.json 200,2,8,9")
+    );
     assert_eq!(
         b.variant(1).unwrap().onnx_file,
         "onnx/expensive/backbone_rpn.onnx"
