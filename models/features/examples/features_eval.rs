@@ -3,7 +3,8 @@
 //! none). Prints tables; writes the model to `<data>/../features-model.json`.
 //!
 //! `cargo run --release -p frugal-features --example features_eval -- DATA_DIR
-//!  [TRAIN_STRIDE] [TEST_STRIDE] [PARAMS...]` (train stride 0: proposal recall only)
+//!  [TRAIN_STRIDE] [TEST_STRIDE] [PARAMS...]` (train stride 0: proposal recall only;
+//!  `reuse`: evaluate the saved model, without the recall table)
 
 use frugal_data::{GenConfig, Split};
 use frugal_features::data::{class_names, load_frames};
@@ -18,7 +19,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         args.first()
             .ok_or("usage: features_eval DATA_DIR [TRAIN_STRIDE] [TEST_STRIDE] [PARAMS...]")?,
     );
-    let train_stride: usize = args.get(1).map_or(Ok(6), |s| s.parse())?;
+    // "reuse": evaluate the saved model only.
+    let train_stride: usize = match args.get(1).map(String::as_str) {
+        Some("reuse") => usize::MAX,
+        other => other.map_or(Ok(6), str::parse)?,
+    };
     let test_stride: usize = args.get(2).map_or(Ok(4), |s| s.parse())?;
     let mut params: Vec<HogParams> = args
         .iter()
@@ -37,6 +42,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     let test = load_frames(&ds, Split::Test, test_stride, usize::MAX)?;
     let cfg = TrainConfig::default();
+    let out = dir.with_file_name("features-model.json");
+    if train_stride == usize::MAX {
+        // Reuse the saved model, skip proposal recall: a per-variant cost run.
+        let model = frugal_features::FeatureModel::load(&out)?;
+        for p in &params {
+            let r = evaluate(&model, *p, &test, model.thresholds.ge, 0.5)?;
+            let tot = r.total();
+            println!(
+                "{p}: {:.1} ms/frame wall, P {:.3} R {:.3}",
+                r.mean_ms,
+                tot.precision().unwrap_or(0.0),
+                tot.recall().unwrap_or(0.0)
+            );
+        }
+        return Ok(());
+    }
     let counts = [200, 500, 1000, 2000];
     let (recall, ms) = proposal_recall(&cfg.edgeboxes, &test, &counts, 0.5)?;
     let signs: usize = test.iter().map(|f| f.objects.len()).sum();
@@ -60,7 +81,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         trainf.len(),
         t.elapsed().as_secs_f64()
     );
-    let out = dir.with_file_name("features-model.json");
     model.save(&out)?;
     for p in &params {
         let r = evaluate(&model, *p, &test, model.thresholds.ge, 0.5)?;

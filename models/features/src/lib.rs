@@ -38,5 +38,5 @@ pub mod train;
 pub use error::{Error, Result};
 pub use frame::Rgb;
 pub use model::{Confidence, FeatureModel, HogDetector, HogSvms, ScoreThresholds};
-pub use params::HogParams;
+pub use params::{HogParams, MAX_CELL_PX};
 pub use train::{LabeledFrame, Progress, TrainConfig, train};

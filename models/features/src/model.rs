@@ -12,7 +12,7 @@ use std::io::Write as _;
 use std::path::Path;
 
 /// Version of the model file format written by [`FeatureModel::save`].
-pub const MODEL_FORMAT: u32 = 1;
+pub const MODEL_FORMAT: u32 = 2;
 
 /// The paper's confidence thresholds on the SVM margin: `c_opt = 0.9`, `c_ge = 0`,
 /// `c_ua = −0.5`.
@@ -84,7 +84,8 @@ pub struct FeatureModel {
     pub format: u32,
     /// Class names, indexed by class id.
     pub classes: Vec<String>,
-    /// Side of the square window every proposal is resampled to before HoG.
+    /// Side of the square reference window: a variant's cell grid is `window / cell`
+    /// cells a side (see [`HogParams::geometry`]).
     pub window: usize,
     /// Proposal settings.
     pub edgeboxes: EdgeBoxesConfig,
@@ -162,7 +163,7 @@ impl FeatureModel {
             };
             p.validate(self.window)
                 .map_err(|e| format!("SVM set {p}: {e}"))?;
-            let dim = p.hog(false).len(self.window, self.window);
+            let dim = p.feature_len(self.window);
             if h.svms.len() != self.classes.len() {
                 return Err(format!(
                     "SVM set <·,{},{},{}> has {} classifiers for {} classes",
@@ -250,8 +251,9 @@ impl HogDetector<'_> {
 
     /// Best class and margin for each box.
     pub fn classify(&self, img: &Rgb<'_>, boxes: &[BBox]) -> Vec<(ClassId, f32)> {
-        let cfg = self.params.hog(self.model.orientation_interpolation);
-        let size = self.model.window;
+        let (size, cfg) = self
+            .params
+            .geometry(self.model.window, self.model.orientation_interpolation);
         boxes
             .par_iter()
             .with_min_len(16)

@@ -5,6 +5,9 @@ use crate::hog::HogConfig;
 use std::fmt;
 use std::str::FromStr;
 
+/// Largest number of pixels a HoG cell is computed from (see [`HogParams::geometry`]).
+pub const MAX_CELL_PX: usize = 6;
+
 /// One variant of the feature-based detector: how many EdgeBoxes proposals are
 /// classified, and the HoG block size (cells), cell size (pixels) and orientation bins.
 ///
@@ -76,7 +79,26 @@ impl HogParams {
         (self.block, self.cell, self.bins)
     }
 
-    /// The HoG settings of this variant.
+    /// Where HoG runs for `window × window` windows: the side a proposal is resampled
+    /// to and the HoG settings there.
+    ///
+    /// The cell grid is the one of `cell`-pixel cells on the window
+    /// (`window / cell` cells a side), but a cell is computed from at most
+    /// [`MAX_CELL_PX`] pixels: with bigger cells the proposal is resampled to a
+    /// proportionally smaller square. The features describe the same grid, and the
+    /// pixel work — most of the cost — shrinks with the cell size, which is what
+    /// makes cell size a speed knob for the MDP.
+    pub fn geometry(&self, window: usize, orientation_interpolation: bool) -> (usize, HogConfig) {
+        let cells = window.checked_div(self.cell as usize).unwrap_or(0);
+        let px = (self.cell as usize).min(MAX_CELL_PX);
+        let cfg = HogConfig {
+            cell: px,
+            ..self.hog(orientation_interpolation)
+        };
+        (cells * px, cfg)
+    }
+
+    /// The HoG settings of this variant at full resolution (cells of `cell` pixels).
     pub fn hog(&self, orientation_interpolation: bool) -> HogConfig {
         HogConfig {
             cell: self.cell as usize,
@@ -94,7 +116,15 @@ impl HogParams {
                 reason: "must be at least 1".into(),
             });
         }
-        self.hog(false).validate(window)
+        self.hog(false).validate(window)?;
+        let (side, cfg) = self.geometry(window, false);
+        cfg.validate(side)
+    }
+
+    /// Length of the feature vector for `window × window` windows.
+    pub fn feature_len(&self, window: usize) -> usize {
+        let (side, cfg) = self.geometry(window, false);
+        cfg.len(side, side)
     }
 }
 
@@ -176,6 +206,14 @@ mod tests {
             }
             .validate(48)
             .is_err()
+        );
+        // Bigger cells are computed on smaller resamplings, with the same grid.
+        let (side, cfg) = HogParams::BASELINE.geometry(48, false);
+        assert_eq!((side, cfg.cell), (36, 6));
+        assert_eq!(HogParams::BASELINE.feature_len(48), 5 * 5 * 4 * 9);
+        assert_eq!(
+            HogParams::BASELINE.with_hog(2, 4, 9).geometry(48, false).0,
+            48
         );
         assert!(
             HogParams {

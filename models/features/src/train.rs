@@ -45,7 +45,7 @@ impl LabeledFrame {
 /// Training settings.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TrainConfig {
-    /// Side of the square window proposals are resampled to.
+    /// Side of the square reference window (see [`HogParams::geometry`]).
     pub window: usize,
     /// Proposal settings (also stored in the model for detection).
     pub edgeboxes: EdgeBoxesConfig,
@@ -241,8 +241,7 @@ fn train_hog(
     params: HogParams,
     cfg: &TrainConfig,
 ) -> Result<HogSvms> {
-    let hog = params.hog(cfg.orientation_interpolation);
-    let size = cfg.window;
+    let (size, hog) = params.geometry(cfg.window, cfg.orientation_interpolation);
     let dim = hog.len(size, size);
     // Initial sample set, frame by frame in order.
     let per_frame: Vec<(Vec<f32>, Vec<ClassId>)> = frames
