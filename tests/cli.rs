@@ -10,3 +10,5 @@ mod data;
 mod fly;
 #[path = "cli/features.rs"]
 mod features;
+#[path = "cli/pareto.rs"]
+mod pareto;

@@ -7,10 +7,12 @@ use std::ffi::OsString;
 
 pub mod bench;
 pub mod bundle;
+pub mod compress;
 pub mod data;
 pub mod fly;
 pub mod eval;
 pub mod features;
+pub mod pareto;
 pub mod policy;
 pub mod run;
 pub mod train;
@@ -43,6 +45,10 @@ enum Command {
     Export(bench::ExportArgs),
     /// Time a detector per frame through ONNX Runtime and libtorch, side by side.
     Bench(bench::BenchArgs),
+    /// Make compressed variants of a trained detector (int8, pruning, layer removal, resolution).
+    Compress(compress::CompressArgs),
+    /// Accuracy and latency of every variant, the Pareto front, plots, variants file.
+    Pareto(pareto::ParetoArgs),
     /// The MDP stage: replay variants on videos, train the policy, evaluate strategies.
     Policy(policy::PolicyArgs),
     /// Write, verify or inspect a policy bundle (the file the drone loads).
@@ -72,6 +78,8 @@ where
         Command::Features(args) => features::run(args),
         Command::Export(args) => bench::export(args),
         Command::Bench(args) => bench::bench(args),
+        Command::Compress(args) => compress::run(args),
+        Command::Pareto(args) => pareto::run(args),
     }
 }
 

@@ -1,0 +1,273 @@
+//! `frugal compress` and `frugal pareto` on a tiny generated dataset with a tiny model.
+use std::path::Path;
+
+fn frugal(args: &[&str]) -> Result<(), String> {
+    frugal::run(std::iter::once("frugal").chain(args.iter().copied())).map_err(|e| format!("{e:#}"))
+}
+
+fn p(path: &Path) -> &str {
+    path.to_str().expect("temp paths are UTF-8")
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_slice(
+        &std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())),
+    )
+    .unwrap()
+}
+
+const TINY: &str = r#"
+[model]
+backbone = [
+  { out_channels = 8, stride = 2, convs = 1 },
+  { out_channels = 16, stride = 2, convs = 1 },
+  { out_channels = 16, stride = 1, convs = 1 },
+]
+rpn_channels = 8
+anchor_sizes = [12.0, 24.0]
+anchor_ratios = [1.0]
+roi_size = 3
+roi_hidden = 16
+pre_nms_train = 100
+post_nms_train = 30
+pre_nms_test = 100
+post_nms_test = 10
+
+[train]
+epochs = 1
+batch_size = 3
+warmup_steps = 1
+train_frames = 6
+val_frames = 2
+"#;
+
+const GRID: &str = r#"
+calibration_frames = 3
+drift_frames = 2
+calibration = { method = "entropy" }
+[finetune]
+steps = 2
+frames = 6
+[[variants]]
+name = "base"
+technique = { kind = "base" }
+[[variants]]
+name = "base-int8"
+parent = "base"
+technique = { kind = "int8", calibration = { method = "min_max" } }
+[[variants]]
+name = "mag50"
+technique = { kind = "magnitude", sparsity = 0.5 }
+[[variants]]
+name = "ch50"
+technique = { kind = "channels", keep = 0.5 }
+[[variants]]
+name = "drop2"
+technique = { kind = "drop_blocks", blocks = [2] }
+[[variants]]
+name = "res050"
+technique = { kind = "resolution", scale = 0.5 }
+[[variants]]
+name = "res050-int8"
+parent = "res050"
+technique = { kind = "int8" }
+"#;
+
+#[test]
+fn compress_then_pareto_on_a_tiny_model() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (data, model, vars, out) = (
+        tmp.path().join("data"),
+        tmp.path().join("model"),
+        tmp.path().join("variants"),
+        tmp.path().join("pareto"),
+    );
+    let cfg = tmp.path().join("tiny.toml");
+    std::fs::write(&cfg, TINY).unwrap();
+    let grid = tmp.path().join("grid.toml");
+    std::fs::write(&grid, GRID).unwrap();
+    frugal(&[
+        "data",
+        "generate",
+        "--profile",
+        "tiny",
+        "--out",
+        p(&data),
+        "--quiet",
+    ])
+    .unwrap();
+    frugal(&[
+        "train",
+        "--data",
+        p(&data),
+        "--config",
+        p(&cfg),
+        "--out",
+        p(&model),
+        "--quiet",
+    ])
+    .unwrap();
+
+    // a grid with an unknown field is refused, naming the file and the field
+    let bad = tmp.path().join("bad.toml");
+    std::fs::write(&bad, "[finetune]\nstepz = 1\n").unwrap();
+    let e = frugal(&[
+        "compress",
+        "--model",
+        p(&model),
+        "--data",
+        p(&data),
+        "--out",
+        p(&vars),
+        "--config",
+        p(&bad),
+    ])
+    .unwrap_err();
+    assert!(e.contains("bad.toml") && e.contains("stepz"), "{e}");
+    // pareto on a folder without variants says so
+    let e = frugal(&[
+        "pareto",
+        "--variants",
+        p(tmp.path()),
+        "--data",
+        p(&data),
+        "--out",
+        p(&out),
+    ])
+    .unwrap_err();
+    assert!(e.contains("no variant folders"), "{e}");
+
+    frugal(&[
+        "compress",
+        "--model",
+        p(&model),
+        "--data",
+        p(&data),
+        "--out",
+        p(&vars),
+        "--config",
+        p(&grid),
+        "--quiet",
+    ])
+    .unwrap();
+    let names = [
+        "base",
+        "base-int8",
+        "mag50",
+        "ch50",
+        "drop2",
+        "res050",
+        "res050-int8",
+    ];
+    for n in names {
+        let rec = json(&vars.join(n).join("variant.json"));
+        assert_eq!(rec["name"], n);
+        for f in rec["files"].as_array().unwrap() {
+            let file = vars.join(n).join(f["file"].as_str().unwrap());
+            let bytes = std::fs::read(&file).unwrap();
+            assert_eq!(f["bytes"], bytes.len());
+            let sum = std::process::Command::new("sha256sum")
+                .arg(&file)
+                .output()
+                .unwrap();
+            let hex = String::from_utf8_lossy(&sum.stdout)
+                .split(' ')
+                .next()
+                .unwrap()
+                .to_string();
+            assert_eq!(f["sha256"], hex, "{n}");
+        }
+    }
+    let rec = |n: &str| json(&vars.join(n).join("variant.json"));
+    let base_params = rec("base")["parameters"].as_u64().unwrap();
+    // magnitude pruning keeps the parameter count but zeroes half of the weights
+    let mag = rec("mag50");
+    assert_eq!(mag["parameters"].as_u64().unwrap(), base_params);
+    let nz = mag["nonzero_parameters"].as_u64().unwrap() as f64;
+    assert!(
+        nz < 0.56 * base_params as f64 && nz > 0.4 * base_params as f64,
+        "{nz}"
+    );
+    // channel pruning and block removal make physically smaller models
+    assert!(rec("ch50")["parameters"].as_u64().unwrap() < base_params / 2);
+    assert!(rec("drop2")["parameters"].as_u64().unwrap() < base_params);
+    // the resolution knob halves the exported input; int8 records its drift
+    assert_eq!(
+        rec("res050")["input_width"],
+        rec("base")["input_width"].as_u64().unwrap() / 2
+    );
+    assert_eq!(
+        rec("res050-int8")["input_width"],
+        rec("res050")["input_width"]
+    );
+    let drift = &rec("base-int8")["drift"];
+    assert!(
+        drift["max_abs_diff"]["features"]
+            .as_f64()
+            .unwrap()
+            .is_finite()
+    );
+    assert_eq!(rec("base-int8")["calibration"]["method"], "min_max");
+
+    frugal(&[
+        "pareto",
+        "--variants",
+        p(&vars),
+        "--data",
+        p(&data),
+        "--out",
+        p(&out),
+        "--frames",
+        "4",
+        "--warmup",
+        "1",
+        "--quiet",
+    ])
+    .unwrap();
+    let report = json(&out.join("pareto.json"));
+    let vs = report["variants"].as_array().unwrap();
+    assert_eq!(vs.len(), names.len());
+    for metric in ["map", "f1", "iou"] {
+        let front = report["fronts"][metric].as_array().unwrap();
+        assert!(!front.is_empty());
+        for v in vs {
+            let on = front.iter().any(|f| f == &v["name"]);
+            assert_eq!(v["on_front"][metric], on);
+            // on the front exactly when nothing dominates it
+            assert_eq!(
+                on,
+                v["dominated_by"][metric].as_array().unwrap().is_empty(),
+                "{metric} {}",
+                v["name"]
+            );
+        }
+        for ext in ["png", "svg"] {
+            assert!(out.join(format!("pareto_{metric}.{ext}")).is_file());
+        }
+    }
+    for v in vs {
+        assert!(v["latency"]["median_ms"].as_f64().unwrap() > 0.0);
+        let conf = v["confidence"].as_object().unwrap();
+        let frames: u64 = conf.values().map(|h| h["frames"].as_u64().unwrap()).sum();
+        assert_eq!(frames, 4);
+    }
+    let csv = std::fs::read_to_string(out.join("pareto.csv")).unwrap();
+    assert_eq!(csv.lines().count(), names.len() + 1);
+    // the variants file lists the mAP front in the shape `frugal policy record` reads
+    let vf = json(&out.join("variants.json"));
+    let listed = vf["variants"].as_array().unwrap();
+    assert_eq!(
+        listed.len(),
+        report["fronts"]["map"].as_array().unwrap().len()
+    );
+    for v in listed {
+        assert_eq!(v["family"], "cnn");
+        assert_eq!(v["source"]["kind"], "onnx");
+        assert!(
+            Path::new(v["source"]["dir"].as_str().unwrap())
+                .join("backbone_rpn.onnx")
+                .is_file()
+        );
+        assert!(v["latency_ms"].as_f64().unwrap() > 0.0);
+    }
+}

@@ -1,0 +1,63 @@
+//! `frugal pareto`: accuracy and latency of every compressed variant, the Pareto
+//! front, plots, and the variants file for `frugal policy record`.
+use clap::Args;
+use frugal_pareto::measure::{ParetoOptions, run as measure_all, table};
+use std::path::PathBuf;
+
+/// Arguments of `frugal pareto`.
+#[derive(Args, Debug)]
+pub struct ParetoArgs {
+    /// Folder of variant folders written by `frugal compress`.
+    #[arg(long)]
+    pub variants: PathBuf,
+    /// Dataset folder (its validation split is scored).
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Output folder.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// ONNX Runtime intra-op threads (fixed for every variant).
+    #[arg(long, default_value_t = 1)]
+    pub threads: usize,
+    /// Validation frames, spread evenly (0 = all).
+    #[arg(long, default_value_t = 0)]
+    pub frames: usize,
+    /// Untimed warm-up detections per variant.
+    #[arg(long, default_value_t = 3)]
+    pub warmup: usize,
+    /// Score threshold for P/R/F1 and IoU.
+    #[arg(long, default_value_t = 0.5)]
+    pub threshold: f32,
+    /// Also copy the mAP plot (PNG) here, e.g. docs/pareto_map.png.
+    #[arg(long)]
+    pub docs_png: Option<PathBuf>,
+    /// No progress lines.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Run `frugal pareto`.
+pub fn run(args: ParetoArgs) -> anyhow::Result<()> {
+    let report = measure_all(&ParetoOptions {
+        variants: args.variants.clone(),
+        data: args.data.clone(),
+        out: args.out.clone(),
+        threads: args.threads,
+        frames: args.frames,
+        warmup: args.warmup,
+        score_threshold: args.threshold,
+        docs_png: args.docs_png.clone(),
+        progress: !args.quiet,
+    })?;
+    print!("{}", table(&report));
+    for (metric, names) in &report.fronts {
+        println!("front ({metric}): {}", names.join(" → "));
+    }
+    println!(
+        "{} variants × {} validation frames; wrote {}/pareto.json, pareto.csv, pareto_*.png|svg, confidence.json, variants.json",
+        report.variants.len(),
+        report.frames,
+        args.out.display()
+    );
+    Ok(())
+}
