@@ -9,8 +9,9 @@
 //!   pedestrians as sprites behind a per-column z-buffer — and the exact ground truth
 //!   of each frame ([`FrameTruth`]);
 //! - [`perception`]: the [`Perception`] trait the loop calls per frame,
-//!   [`GroundTruthPerception`], and [`DeviceProfile`] (compute time × slowdown =
-//!   simulated time);
+//!   [`GroundTruthPerception`], [`DetectorPerception`] (any
+//!   `frugal_runtime::Detector` every frame, timed: the static baseline), and
+//!   [`DeviceProfile`] (compute time × slowdown = simulated time);
 //! - [`flight`]: the navigator and the loop, [`fly`] → [`FlightResult`];
 //! - [`report`]: the paper's table (mean ± spread), JSON / CSV, top views (plotters,
 //!   PNG + SVG), annotated frames and GIFs.

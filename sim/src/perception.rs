@@ -2,7 +2,8 @@
 //! ground-truth implementation, and device profiles that turn measured compute time
 //! into simulated time.
 use crate::render::FrameTruth;
-use frugal_runtime::{Detection, FrameRef};
+use frugal_runtime::{Detection, Detector, FrameRef};
+use std::time::Instant;
 
 /// What perception is given for one frame.
 #[derive(Clone, Copy, Debug)]
@@ -110,6 +111,65 @@ impl Perception for GroundTruthPerception {
     }
 }
 
+/// Any [`frugal_runtime::Detector`] (the ONNX Runtime executor, the HoG pipeline, the
+/// tch CNN) run on every frame — the paper's "static" baseline — with its wall-clock
+/// time per call as the compute time. It never reads the ground truth.
+#[derive(Debug)]
+pub struct DetectorPerception<D> {
+    /// The detector.
+    pub detector: D,
+    /// Label for tables, e.g. `static-int8`.
+    pub label: String,
+    /// Most detections kept per frame.
+    pub max_detections: usize,
+    /// Detections scoring below this are dropped (on the family's score scale).
+    pub min_score: f32,
+    out: Vec<Detection>,
+}
+
+impl<D: Detector> DetectorPerception<D> {
+    /// Wrap `detector`, keeping up to 16 detections of any score.
+    pub fn new(label: impl Into<String>, detector: D) -> Self {
+        Self {
+            detector,
+            label: label.into(),
+            max_detections: 16,
+            min_score: f32::NEG_INFINITY,
+            out: Vec::new(),
+        }
+    }
+}
+
+impl<D> Perception for DetectorPerception<D>
+where
+    D: Detector,
+    D::Error: std::fmt::Display,
+{
+    fn name(&self) -> String {
+        self.label.clone()
+    }
+
+    fn perceive(&mut self, input: &FrameInput<'_>) -> Result<Percept, PerceptionError> {
+        self.out.clear();
+        self.out.resize(self.max_detections, Detection::default());
+        let started = Instant::now();
+        let n = self
+            .detector
+            .detect(input.image, &mut self.out)
+            .map_err(|e| PerceptionError::from(e.to_string()))?;
+        let compute_ms = started.elapsed().as_secs_f64() * 1e3;
+        let detections = self.out[..n.min(self.out.len())]
+            .iter()
+            .filter(|d| d.score >= self.min_score)
+            .copied()
+            .collect();
+        Ok(Percept {
+            detections,
+            compute_ms,
+        })
+    }
+}
+
 /// How much slower the simulated drone's computer is than the machine that measured
 /// the compute time: simulated seconds per frame = `compute_ms / 1000 × slowdown`.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -146,5 +206,64 @@ impl DeviceProfile {
             "tx2-like" | "tx2" => Some(DeviceProfile::tx2_like()),
             _ => None,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use frugal_runtime::BBox;
+
+    /// Reports three boxes with falling scores, fails on an all-black frame.
+    struct Fake;
+
+    impl Detector for Fake {
+        type Error = String;
+        fn detect(&mut self, frame: FrameRef<'_>, out: &mut [Detection]) -> Result<usize, String> {
+            if frame.rgb.iter().all(|&v| v == 0) {
+                return Err("black frame".into());
+            }
+            let mut n = 0;
+            for (i, slot) in out.iter_mut().take(3).enumerate() {
+                *slot = Detection {
+                    bbox: BBox::new(0.0, 0.0, 10.0, 10.0 + i as f32),
+                    score: 0.9 - 0.3 * i as f32,
+                    class: i as u16,
+                };
+                n += 1;
+            }
+            Ok(n)
+        }
+    }
+
+    #[test]
+    fn detector_perception_passes_detections_through_and_reports_errors() {
+        let truth = FrameTruth::default();
+        let px = vec![7u8; 4 * 4 * 3];
+        let input = FrameInput {
+            image: FrameRef::new(4, 4, &px).unwrap(),
+            time_s: 0.0,
+            index: 0,
+            truth: &truth,
+        };
+        let mut p = DetectorPerception::new("fake", Fake);
+        let out = p.perceive(&input).unwrap();
+        assert_eq!(
+            out.detections.iter().map(|d| d.class).collect::<Vec<_>>(),
+            [0, 1, 2]
+        );
+        assert!(out.compute_ms >= 0.0);
+        p.min_score = 0.5;
+        p.max_detections = 1;
+        assert_eq!(p.perceive(&input).unwrap().detections.len(), 1);
+        p.max_detections = 16;
+        assert_eq!(p.perceive(&input).unwrap().detections.len(), 2);
+        assert_eq!(p.name(), "fake");
+        let black = vec![0u8; 4 * 4 * 3];
+        let input = FrameInput {
+            image: FrameRef::new(4, 4, &black).unwrap(),
+            ..input
+        };
+        assert_eq!(p.perceive(&input).unwrap_err().to_string(), "black frame");
     }
 }

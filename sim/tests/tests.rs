@@ -550,3 +550,40 @@ fn malformed_maze_files_report_file_and_line() {
         assert!(msg.contains(problem), "{msg}");
     }
 }
+
+#[test]
+fn low_light_is_darker_and_noisier() {
+    let text = std::fs::read_to_string(maze_dir().join("easy.maze")).unwrap();
+    let normal = Maze::parse(&text, Path::new("n.maze")).unwrap();
+    let low = Maze::parse(
+        &text.replace("light normal", "light low"),
+        Path::new("l.maze"),
+    )
+    .unwrap();
+    let cam = CameraSpec::default();
+    let pose = frugal_sim::flight::start_pose(&normal, 1);
+    let (a, ta) = render(&normal, cam, pose, &[]);
+    let (b, tb) = render(&low, cam, pose, &[]);
+    assert_eq!(ta, tb, "lighting does not move anything");
+    let mean = |v: &[u8]| v.iter().map(|&x| f64::from(x)).sum::<f64>() / v.len() as f64;
+    // Noise: mean absolute difference between horizontally adjacent pixels in the
+    // flat ceiling corner (top-left rows), relative to brightness.
+    let roughness = |v: &[u8]| {
+        let mut s = 0.0;
+        for y in 0..10u32 {
+            for x in 0..60u32 {
+                s += (f64::from(v[((y * cam.width + x) * 3) as usize])
+                    - f64::from(v[((y * cam.width + x + 1) * 3) as usize]))
+                .abs();
+            }
+        }
+        s / 600.0 / mean(v)
+    };
+    assert!(mean(&b) < 0.6 * mean(&a), "{} vs {}", mean(&b), mean(&a));
+    assert!(
+        roughness(&b) > 2.0 * roughness(&a),
+        "{} vs {}",
+        roughness(&b),
+        roughness(&a)
+    );
+}
