@@ -367,7 +367,11 @@ impl VariantsFile {
                 message: e.to_string(),
             })?
         };
-        let base = path.parent().unwrap_or(Path::new("."));
+        let parent = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        let base = std::path::absolute(parent).map_err(|e| PolicyError::io(parent, e))?;
         for v in &mut file.variants {
             match &mut v.source {
                 VariantSource::Onnx { dir } | VariantSource::Hog { model: dir, .. }
