@@ -14,6 +14,9 @@ use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+/// An accuracy metric: key, axis label, getter.
+type Metric = (&'static str, &'static str, fn(&VariantResult) -> f64);
+
 /// Bins of the confidence histograms (over `[0, 1]`).
 pub const CONFIDENCE_BINS: usize = 20;
 
@@ -264,7 +267,7 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
     }
     std::fs::create_dir_all(&opts.out).map_err(|e| ParetoError::io(&opts.out, e))?;
     let mut fronts = BTreeMap::new();
-    let metrics: [(&str, &str, fn(&VariantResult) -> f64); 3] = [
+    let metrics: [Metric; 3] = [
         ("map", "mAP@0.5", |r| r.map),
         ("f1", "F1", |r| r.f1),
         ("iou", "mean IoU", |r| r.mean_iou),

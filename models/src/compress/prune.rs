@@ -296,10 +296,10 @@ pub fn drop_blocks(model: &FasterRcnn, blocks: &[usize]) -> Result<FasterRcnn, M
             }
             None => Some(name.clone()),
         };
-        if let Some(s) = from.and_then(|f| src.get(&f)) {
-            if s.size() == t.size() {
-                tch::no_grad(|| t.shallow_clone().copy_(s));
-            }
+        if let Some(s) = from.and_then(|f| src.get(&f))
+            && s.size() == t.size()
+        {
+            tch::no_grad(|| t.shallow_clone().copy_(s));
         }
     }
     Ok(new)

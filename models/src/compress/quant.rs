@@ -142,9 +142,9 @@ impl ActStats {
                 let mass: f64 = self.hist[a..b].iter().sum();
                 let nonzero = self.hist[a..b].iter().filter(|v| **v > 0.0).count();
                 if nonzero > 0 {
-                    for k in a..b {
-                        if self.hist[k] > 0.0 {
-                            q[k] = mass / nonzero as f64;
+                    for (qk, h) in q[a..b].iter_mut().zip(&self.hist[a..b]) {
+                        if *h > 0.0 {
+                            *qk = mass / nonzero as f64;
                         }
                     }
                 }
@@ -401,6 +401,6 @@ mod tests {
         assert_eq!(lo, 0.0);
         assert!((0.99..1.1).contains(&hi), "percentile hi {hi}");
         let (_, hi) = s.range(Calibration::Entropy);
-        assert!(hi < 10.0 && hi >= 0.9, "entropy threshold {hi}");
+        assert!((0.9..10.0).contains(&hi), "entropy threshold {hi}");
     }
 }

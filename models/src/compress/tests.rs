@@ -77,7 +77,13 @@ fn exported_variants_pass_the_onnx_checker_and_run_in_onnxruntime() {
     let spec = quant::quant_spec(&stats, Calibration::MinMax, &layers);
     let (pruned, _) = prune::prune_channels(&base, 0.5).unwrap();
     let dropped = prune::drop_blocks(&base, &[1]).unwrap();
-    let cases: Vec<(&str, &FasterRcnn, Option<&QuantSpec>, (usize, usize))> = vec![
+    type Case<'a> = (
+        &'a str,
+        &'a FasterRcnn,
+        Option<&'a QuantSpec>,
+        (usize, usize),
+    );
+    let cases: Vec<Case> = vec![
         ("int8", &base, Some(&spec), (h, w)),
         ("channels", &pruned, None, (h, w)),
         ("dropped", &dropped, None, (h, w)),
