@@ -1,99 +1,14 @@
-//! Box arithmetic in plain Rust: anchors, the box coder, NMS. No tensors here, so an
-//! ONNX executor can reuse all of it.
-use frugal_runtime::BBox;
-
-/// Largest log-scale a decoded delta may apply (as in Detectron2: `ln(1000/16)`).
-const MAX_LOG_SCALE: f32 = 4.135_166_6;
-
-/// Weights of the box coder: deltas are `(wx·dx, wy·dy, ww·dw, wh·dh)`.
-pub type CoderWeights = [f32; 4];
-
-/// Box-coder weights of the RPN.
-pub const RPN_WEIGHTS: CoderWeights = [1.0, 1.0, 1.0, 1.0];
-/// Box-coder weights of the RoI head.
-pub const ROI_WEIGHTS: CoderWeights = [10.0, 10.0, 5.0, 5.0];
-
-/// The deltas `(dx, dy, dw, dh)` that move `reference` onto `target` (Faster R-CNN
-/// parametrisation, scaled by `w`).
-pub fn encode(reference: &BBox, target: &BBox, w: CoderWeights) -> [f32; 4] {
-    let (rw, rh) = (reference.width().max(1e-3), reference.height().max(1e-3));
-    let (rcx, rcy) = reference.center();
-    let (tw, th) = (target.width().max(1e-3), target.height().max(1e-3));
-    let (tcx, tcy) = target.center();
-    [
-        w[0] * (tcx - rcx) / rw,
-        w[1] * (tcy - rcy) / rh,
-        w[2] * (tw / rw).ln(),
-        w[3] * (th / rh).ln(),
-    ]
-}
-
-/// Apply deltas to `reference` (inverse of [`encode`]); scales are clamped so a
-/// wild delta cannot overflow.
-pub fn decode(reference: &BBox, d: [f32; 4], w: CoderWeights) -> BBox {
-    let (rw, rh) = (reference.width(), reference.height());
-    let (rcx, rcy) = reference.center();
-    let cx = rcx + d[0] / w[0] * rw;
-    let cy = rcy + d[1] / w[1] * rh;
-    let bw = rw * (d[2] / w[2]).min(MAX_LOG_SCALE).exp();
-    let bh = rh * (d[3] / w[3]).min(MAX_LOG_SCALE).exp();
-    BBox::new(cx - 0.5 * bw, cy - 0.5 * bh, cx + 0.5 * bw, cy + 0.5 * bh)
-}
-
-/// Anchors for a `fh × fw` feature map of the given stride, in the order
-/// `(y, x, a)`: index `(y·fw + x)·A + a`, with `a = size_index·R + ratio_index`.
-/// Anchors are centred on the cell centre `((x + 0.5)·stride, (y + 0.5)·stride)`.
-pub fn anchors(fh: usize, fw: usize, stride: f32, sizes: &[f32], ratios: &[f32]) -> Vec<BBox> {
-    let mut out = Vec::with_capacity(fh * fw * sizes.len() * ratios.len());
-    for y in 0..fh {
-        for x in 0..fw {
-            let (cx, cy) = ((x as f32 + 0.5) * stride, (y as f32 + 0.5) * stride);
-            for &s in sizes {
-                for &r in ratios {
-                    let w = s / r.sqrt();
-                    let h = s * r.sqrt();
-                    out.push(BBox::new(
-                        cx - 0.5 * w,
-                        cy - 0.5 * h,
-                        cx + 0.5 * w,
-                        cy + 0.5 * h,
-                    ));
-                }
-            }
-        }
-    }
-    out
-}
-
-/// Greedy non-maximum suppression: indices of the kept boxes, best score first. A box
-/// is dropped when its IoU with an already kept box is above `iou`.
-pub fn nms(boxes: &[BBox], scores: &[f32], iou: f32) -> Vec<usize> {
-    let mut order: Vec<usize> = (0..boxes.len().min(scores.len())).collect();
-    order.sort_by(|&a, &b| scores[b].total_cmp(&scores[a]).then(a.cmp(&b)));
-    let mut keep: Vec<usize> = Vec::new();
-    for i in order {
-        if keep.iter().all(|&k| boxes[k].iou(&boxes[i]) <= iou) {
-            keep.push(i);
-        }
-    }
-    keep
-}
-
-/// Indices of the `k` highest scores, best first (ties by index).
-pub fn top_k(scores: &[f32], k: usize) -> Vec<usize> {
-    let mut idx: Vec<usize> = (0..scores.len()).collect();
-    let k = k.min(idx.len());
-    if k < idx.len() {
-        idx.select_nth_unstable_by(k, |&a, &b| scores[b].total_cmp(&scores[a]).then(a.cmp(&b)));
-        idx.truncate(k);
-    }
-    idx.sort_by(|&a, &b| scores[b].total_cmp(&scores[a]).then(a.cmp(&b)));
-    idx
-}
+//! Box arithmetic: anchors, the box coder, NMS. The code lives in
+//! [`frugal_runtime::cnn`] (plain Rust, shared with the ONNX Runtime executor that
+//! flies); this module re-exports it for the training code and keeps its tests.
+pub use frugal_runtime::cnn::{
+    CoderWeights, ROI_WEIGHTS, RPN_WEIGHTS, anchors, decode, encode, nms, top_k,
+};
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use frugal_runtime::BBox;
 
     fn lcg(state: &mut u64) -> f32 {
         *state = state

@@ -3,7 +3,7 @@
 use crate::ModelError;
 use crate::boxes;
 use crate::config::ModelConfig;
-use crate::glue::{self, DetectionParams, ProposalParams};
+use crate::glue::{self, ProposalParams};
 use crate::roi_align::{RoiAlignParams, roi_align_gather};
 use frugal_runtime::{BBox, Detection, Detector, FrameRef};
 use std::path::Path;
@@ -347,7 +347,7 @@ impl FasterRcnn {
                 &d,
                 &props,
                 (w as f32, h as f32),
-                DetectionParams::from_config(&self.config),
+                glue::detection_params(&self.config),
             )
         })
     }

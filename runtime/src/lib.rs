@@ -13,8 +13,10 @@
 //! - [`track`]: the KLT [`Tracker`] (Shi-Tomasi + pyramidal Lucas-Kanade + median flow);
 //! - [`geom`]: boxes, detections, frames, the [`Detector`] trait.
 //!
-//! Features: `std` (the bundle writer, the synthetic test clips in `synth`, `std::error`
-//! conveniences), `onnx` (the ONNX Runtime executor; implies `std`).
+//! Features: `std` (the bundle writer, the synthetic test clips in `synth`, the CNN
+//! detector's pre/post-processing in `cnn`, `std::error` conveniences), `onnx` (the
+//! ONNX Runtime executor `onnx::OrtDetector`, which runs a bundle's exported CNN
+//! variants on a companion computer; implies `std`).
 //!
 //! ```
 //! use frugal_runtime::bundle::write::{BundleWriter, FamilySpec, VariantSpec};
@@ -50,9 +52,13 @@
 extern crate std;
 
 pub mod bundle;
+#[cfg(feature = "std")]
+pub mod cnn;
 pub mod controller;
 pub mod crc;
 pub mod geom;
+#[cfg(feature = "onnx")]
+pub mod onnx;
 #[cfg(feature = "std")]
 pub mod synth;
 pub mod track;

@@ -27,10 +27,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use tch::{Kind, Tensor};
 
-/// File name of the first graph in an export folder.
-pub const BACKBONE_RPN_FILE: &str = "backbone_rpn.onnx";
-/// File name of the second graph in an export folder.
-pub const ROI_HEAD_FILE: &str = "roi_head.onnx";
+pub use frugal_runtime::onnx::{BACKBONE_RPN_FILE, ROI_HEAD_FILE};
 
 /// The two graphs of an exported detector, in memory.
 pub struct DetectorGraphs {

@@ -1,0 +1,343 @@
+//! Pre- and post-processing of the two-stage CNN detector, in plain Rust on `f32`
+//! slices (feature `std`). The tch model (`frugal-models`) and the ONNX Runtime
+//! executor ([`crate::onnx`]) both call this code, so they agree by construction.
+//!
+//! 1. [`normalize`]: RGB8 frame → `[3, H, W]` floats (CHW).
+//! 2. network `backbone + rpn_head(image) -> (features, objectness [A, h, w],
+//!    deltas [4A, h, w])` (channel `4a + k` holds coordinate `k` of anchor `a`).
+//! 3. [`proposals`]: decode, clip, drop tiny boxes, top-k, NMS, top-k.
+//! 4. network `roi_head(features, rois) -> (class_logits [R, K+1], box_deltas [R, 4K])`
+//!    (column 0 of the logits is background; deltas of class `c` are columns
+//!    `4c..4c+4`).
+//! 5. [`detections`]: softmax, class-specific decoding, clipping, threshold, per-class
+//!    NMS, the best `max_detections` by score.
+//!
+//! Every access is checked: short or malformed network outputs give fewer boxes,
+//! never a panic.
+
+use crate::geom::{BBox, ClassId, Detection, FrameRef};
+use std::vec::Vec;
+
+/// Largest log-scale a decoded delta may apply (as in Detectron2: `ln(1000/16)`).
+const MAX_LOG_SCALE: f32 = 4.135_166_6;
+
+/// Weights of the box coder: deltas are `(wx·dx, wy·dy, ww·dw, wh·dh)`.
+pub type CoderWeights = [f32; 4];
+
+/// Box-coder weights of the RPN.
+pub const RPN_WEIGHTS: CoderWeights = [1.0, 1.0, 1.0, 1.0];
+/// Box-coder weights of the RoI head.
+pub const ROI_WEIGHTS: CoderWeights = [10.0, 10.0, 5.0, 5.0];
+
+/// The deltas `(dx, dy, dw, dh)` that move `reference` onto `target` (Faster R-CNN
+/// parametrisation, scaled by `w`).
+pub fn encode(reference: &BBox, target: &BBox, w: CoderWeights) -> [f32; 4] {
+    let (rw, rh) = (reference.width().max(1e-3), reference.height().max(1e-3));
+    let (rcx, rcy) = reference.center();
+    let (tw, th) = (target.width().max(1e-3), target.height().max(1e-3));
+    let (tcx, tcy) = target.center();
+    [
+        w[0] * (tcx - rcx) / rw,
+        w[1] * (tcy - rcy) / rh,
+        w[2] * (tw / rw).ln(),
+        w[3] * (th / rh).ln(),
+    ]
+}
+
+/// Apply deltas to `reference` (inverse of [`encode`]); scales are clamped so a wild
+/// delta cannot overflow.
+pub fn decode(reference: &BBox, d: [f32; 4], w: CoderWeights) -> BBox {
+    let (rw, rh) = (reference.width(), reference.height());
+    let (rcx, rcy) = reference.center();
+    let cx = rcx + d[0] / w[0] * rw;
+    let cy = rcy + d[1] / w[1] * rh;
+    let bw = rw * (d[2] / w[2]).min(MAX_LOG_SCALE).exp();
+    let bh = rh * (d[3] / w[3]).min(MAX_LOG_SCALE).exp();
+    BBox::new(cx - 0.5 * bw, cy - 0.5 * bh, cx + 0.5 * bw, cy + 0.5 * bh)
+}
+
+/// Anchors for a `fh × fw` feature map of the given stride, in the order `(y, x, a)`:
+/// index `(y·fw + x)·A + a`, with `a = size_index·R + ratio_index`. Anchors are centred
+/// on the cell centre `((x + 0.5)·stride, (y + 0.5)·stride)`.
+pub fn anchors(fh: usize, fw: usize, stride: f32, sizes: &[f32], ratios: &[f32]) -> Vec<BBox> {
+    let mut out = Vec::with_capacity(fh * fw * sizes.len() * ratios.len());
+    for y in 0..fh {
+        for x in 0..fw {
+            let (cx, cy) = ((x as f32 + 0.5) * stride, (y as f32 + 0.5) * stride);
+            for &s in sizes {
+                for &r in ratios {
+                    let (w, h) = (s / r.sqrt(), s * r.sqrt());
+                    out.push(BBox::new(
+                        cx - 0.5 * w,
+                        cy - 0.5 * h,
+                        cx + 0.5 * w,
+                        cy + 0.5 * h,
+                    ));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// `scores[a]` vs `scores[b]`, best first, ties by index (missing scores last).
+fn by_score(scores: &[f32], a: usize, b: usize) -> core::cmp::Ordering {
+    let s = |i: usize| scores.get(i).copied().unwrap_or(f32::NEG_INFINITY);
+    s(b).total_cmp(&s(a)).then(a.cmp(&b))
+}
+
+/// Greedy non-maximum suppression: indices of the kept boxes, best score first. A box
+/// is dropped when its IoU with an already kept box is above `iou`.
+pub fn nms(boxes: &[BBox], scores: &[f32], iou: f32) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..boxes.len().min(scores.len())).collect();
+    order.sort_by(|&a, &b| by_score(scores, a, b));
+    let mut keep: Vec<usize> = Vec::new();
+    for i in order {
+        let Some(bi) = boxes.get(i) else { continue };
+        if keep
+            .iter()
+            .filter_map(|&k| boxes.get(k))
+            .all(|bk| bk.iou(bi) <= iou)
+        {
+            keep.push(i);
+        }
+    }
+    keep
+}
+
+/// Indices of the `k` highest scores, best first (ties by index).
+pub fn top_k(scores: &[f32], k: usize) -> Vec<usize> {
+    let mut idx: Vec<usize> = (0..scores.len()).collect();
+    let k = k.min(idx.len());
+    if k < idx.len() {
+        idx.select_nth_unstable_by(k, |&a, &b| by_score(scores, a, b));
+        idx.truncate(k);
+    }
+    idx.sort_by(|&a, &b| by_score(scores, a, b));
+    idx
+}
+
+/// Frame → normalised CHW floats: `(px / 255 − mean) / std` per channel.
+pub fn normalize(frame: FrameRef<'_>, mean: [f32; 3], std: [f32; 3]) -> Vec<f32> {
+    let plane = frame.width as usize * frame.height as usize;
+    let mut out = std::vec![0.0f32; 3 * plane];
+    let (r, rest) = out.split_at_mut(plane);
+    let (g, b) = rest.split_at_mut(plane);
+    for (((px, r), g), b) in frame.rgb.chunks_exact(3).zip(r).zip(g).zip(b) {
+        if let [pr, pg, pb] = *px {
+            *r = (f32::from(pr) / 255.0 - mean[0]) / std[0];
+            *g = (f32::from(pg) / 255.0 - mean[1]) / std[1];
+            *b = (f32::from(pb) / 255.0 - mean[2]) / std[2];
+        }
+    }
+    out
+}
+
+/// Resize an RGB8 frame to `w × h` with bilinear interpolation (pixel centres aligned,
+/// as `align_corners = false`). An empty frame or target gives black pixels.
+pub fn resize_bilinear(frame: FrameRef<'_>, w: u32, h: u32) -> Vec<u8> {
+    let (sw, sh) = (frame.width as usize, frame.height as usize);
+    let (dw, dh) = (w as usize, h as usize);
+    let mut out = std::vec![0u8; dw * dh * 3];
+    if sw == 0 || sh == 0 || dw == 0 || dh == 0 {
+        return out;
+    }
+    let (fx, fy) = (sw as f32 / dw as f32, sh as f32 / dh as f32);
+    let axis = |d: usize, f: f32, n: usize| {
+        let s = ((d as f32 + 0.5) * f - 0.5).max(0.0);
+        let i0 = (s as usize).min(n - 1);
+        let i1 = (i0 + 1).min(n - 1);
+        (i0, i1, s - i0 as f32)
+    };
+    let xs: Vec<_> = (0..dw).map(|x| axis(x, fx, sw)).collect();
+    let px = |x: usize, y: usize, c: usize| {
+        f32::from(frame.rgb.get((y * sw + x) * 3 + c).copied().unwrap_or(0))
+    };
+    for (y, row) in out.chunks_exact_mut(dw * 3).enumerate() {
+        let (y0, y1, ty) = axis(y, fy, sh);
+        for (&(x0, x1, tx), dst) in xs.iter().zip(row.chunks_exact_mut(3)) {
+            for (c, v) in dst.iter_mut().enumerate() {
+                let top = px(x0, y0, c) + (px(x1, y0, c) - px(x0, y0, c)) * tx;
+                let bot = px(x0, y1, c) + (px(x1, y1, c) - px(x0, y1, c)) * tx;
+                *v = (top + (bot - top) * ty).round().clamp(0.0, 255.0) as u8;
+            }
+        }
+    }
+    out
+}
+
+/// Parameters of [`proposals`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ProposalParams {
+    /// Best anchors kept before NMS.
+    pub pre_nms: usize,
+    /// Proposals kept after NMS.
+    pub post_nms: usize,
+    /// NMS IoU threshold.
+    pub nms_iou: f32,
+    /// Smallest side kept (pixels).
+    pub min_size: f32,
+}
+
+/// RPN outputs → proposals (image pixels), best objectness first. `objectness` is
+/// `[A, fh, fw]` (logits), `deltas` `[4A, fh, fw]`, `anchors` as from [`anchors`].
+pub fn proposals(
+    objectness: &[f32],
+    deltas: &[f32],
+    (fh, fw): (usize, usize),
+    anchors: &[BBox],
+    (img_w, img_h): (f32, f32),
+    p: ProposalParams,
+) -> Vec<BBox> {
+    let plane = fh * fw;
+    let a_per = anchors.len() / plane.max(1);
+    if a_per == 0 {
+        return Vec::new();
+    }
+    // score in anchor order (y, x, a)
+    let scores: Vec<f32> = (0..anchors.len())
+        .map(|i| {
+            let (cell, a) = (i / a_per, i % a_per);
+            objectness
+                .get(a * plane + cell)
+                .copied()
+                .unwrap_or(f32::NEG_INFINITY)
+        })
+        .collect();
+    let mut cand = Vec::new();
+    let mut cand_scores = Vec::new();
+    for i in top_k(&scores, p.pre_nms) {
+        let (cell, a) = (i / a_per, i % a_per);
+        let d = [0, 1, 2, 3].map(|k| {
+            deltas
+                .get((4 * a + k) * plane + cell)
+                .copied()
+                .unwrap_or(0.0)
+        });
+        let (Some(anchor), Some(&score)) = (anchors.get(i), scores.get(i)) else {
+            continue;
+        };
+        if !score.is_finite() {
+            continue; // no objectness for this anchor (short or malformed output)
+        }
+        let b = decode(anchor, d, RPN_WEIGHTS).clip(img_w, img_h);
+        if b.width() >= p.min_size && b.height() >= p.min_size {
+            cand.push(b);
+            cand_scores.push(score);
+        }
+    }
+    let mut keep = nms(&cand, &cand_scores, p.nms_iou);
+    keep.truncate(p.post_nms);
+    keep.into_iter()
+        .filter_map(|i| cand.get(i).copied())
+        .collect()
+}
+
+/// Parameters of [`detections`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DetectionParams {
+    /// Number of object classes `K`.
+    pub num_classes: usize,
+    /// Detections below this softmax probability are dropped.
+    pub score_threshold: f32,
+    /// Per-class NMS IoU threshold.
+    pub nms_iou: f32,
+    /// At most this many detections.
+    pub max_detections: usize,
+}
+
+/// Softmax of one row of logits.
+pub fn softmax(logits: &[f32]) -> Vec<f32> {
+    let m = logits.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    let e: Vec<f32> = logits.iter().map(|l| (l - m).exp()).collect();
+    let s: f32 = e.iter().sum();
+    e.into_iter().map(|v| v / s).collect()
+}
+
+/// RoI head outputs → detections sorted by score (highest first). `logits` is
+/// `[R, K+1]` row-major, `deltas` `[R, 4K]`. The score is the softmax probability of
+/// the detection's class (in `[0, 1]`); the class id is 0-based (logit column − 1).
+pub fn detections(
+    logits: &[f32],
+    deltas: &[f32],
+    rois: &[BBox],
+    (img_w, img_h): (f32, f32),
+    p: DetectionParams,
+) -> Vec<Detection> {
+    let k = p.num_classes;
+    let mut per_class: Vec<(Vec<BBox>, Vec<f32>)> = std::vec![(Vec::new(), Vec::new()); k];
+    let rows = logits
+        .chunks_exact(k + 1)
+        .zip(deltas.chunks_exact(4 * k.max(1)));
+    for ((row, row_deltas), roi) in rows.zip(rois) {
+        let probs = softmax(row);
+        let class_probs = probs.iter().skip(1);
+        let class_deltas = row_deltas.chunks_exact(4);
+        for ((&s, d), (boxes, scores)) in class_probs.zip(class_deltas).zip(per_class.iter_mut()) {
+            if s < p.score_threshold {
+                continue;
+            }
+            let d = [0, 1, 2, 3].map(|i| d.get(i).copied().unwrap_or(0.0));
+            let b = decode(roi, d, ROI_WEIGHTS).clip(img_w, img_h);
+            if b.is_valid() {
+                boxes.push(b);
+                scores.push(s);
+            }
+        }
+    }
+    let mut out = Vec::new();
+    for (c, (bxs, scs)) in per_class.iter().enumerate() {
+        for i in nms(bxs, scs, p.nms_iou) {
+            if let (Some(&bbox), Some(&score)) = (bxs.get(i), scs.get(i)) {
+                out.push(Detection {
+                    bbox,
+                    score,
+                    class: c as ClassId,
+                });
+            }
+        }
+    }
+    out.sort_by(|a, b| b.score.total_cmp(&a.score));
+    out.truncate(p.max_detections);
+    out
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn malformed_outputs_give_fewer_boxes_not_panics() {
+        let anchors = anchors(2, 2, 16.0, &[16.0], &[1.0]);
+        let p = ProposalParams {
+            pre_nms: 10,
+            post_nms: 5,
+            nms_iou: 0.7,
+            min_size: 1.0,
+        };
+        // objectness and deltas far too short
+        let out = proposals(&[1.0], &[], (2, 2), &anchors, (32.0, 32.0), p);
+        assert!(out.len() <= 1);
+        assert!(proposals(&[], &[], (0, 0), &[], (32.0, 32.0), p).is_empty());
+        let dp = DetectionParams {
+            num_classes: 2,
+            score_threshold: 0.1,
+            nms_iou: 0.5,
+            max_detections: 5,
+        };
+        let rois = [BBox::new(0.0, 0.0, 10.0, 10.0); 3];
+        assert!(detections(&[0.0; 4], &[0.0; 3], &rois, (20.0, 20.0), dp).is_empty());
+        assert!(nms(&rois, &[1.0], 0.5).len() == 1);
+    }
+
+    #[test]
+    fn normalize_is_chw() {
+        let px = [255u8, 0, 0, 0, 255, 0];
+        let f = FrameRef::new(2, 1, &px).unwrap();
+        assert_eq!(
+            normalize(f, [0.0; 3], [1.0; 3]),
+            std::vec![1.0, 0.0, 0.0, 1.0, 0.0, 0.0]
+        );
+    }
+}
