@@ -10,6 +10,8 @@
 //!   `bundle::write::BundleWriter`;
 //! - [`controller`]: [`Controller::step`] turns an [`Observation`] into a [`Decision`]
 //!   (detect with variant `k`, or track);
+//! - [`pilot`]: the whole per-frame loop, controller plus one tracker per detected
+//!   sign ([`pilot::Pilot`]);
 //! - [`track`]: the KLT [`Tracker`] (Shi-Tomasi + pyramidal Lucas-Kanade + median flow);
 //! - [`geom`]: boxes, detections, frames, the [`Detector`] trait.
 //!
@@ -59,6 +61,7 @@ pub mod crc;
 pub mod geom;
 #[cfg(feature = "onnx")]
 pub mod onnx;
+pub mod pilot;
 #[cfg(feature = "std")]
 pub mod synth;
 pub mod track;

@@ -4,9 +4,10 @@
 
 use frugal_runtime::bundle::write::{BundleWriter, FamilySpec, VariantSpec};
 use frugal_runtime::bundle::{ScoreBuckets, Thresholds};
+use frugal_runtime::pilot::Pilot;
 use frugal_runtime::synth::{ClipSpec, make_clip};
 use frugal_runtime::track::{GrayImage, Pyramid, Tracker, TrackerParams};
-use frugal_runtime::{Bundle, Controller, Decision, Observation, TrackStatus};
+use frugal_runtime::{Bundle, Controller, Decision, Detection, Observation, TrackStatus};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -50,10 +51,9 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static GLOBAL: Counting = Counting;
 
-#[test]
-fn ten_thousand_frames_allocate_nothing() {
-    // Everything that may allocate happens before counting starts.
-    let bytes = BundleWriter::new(Thresholds::PAPER)
+/// A bundle with two CNN-scale variants; the policy moves to the costly one on a poor score.
+fn two_variant_bundle() -> Vec<u8> {
+    BundleWriter::new(Thresholds::PAPER)
         .family(FamilySpec {
             name: "cnn".into(),
             buckets: ScoreBuckets {
@@ -67,7 +67,13 @@ fn ten_thousand_frames_allocate_nothing() {
         .variant(VariantSpec::new("full", 0, 4.0, 8.0))
         .policy(0, vec![0, 0, 0, 1, 1, 1, 1, 1])
         .finish()
-        .unwrap();
+        .unwrap()
+}
+
+#[test]
+fn ten_thousand_frames_allocate_nothing() {
+    // Everything that may allocate happens before counting starts.
+    let bytes = two_variant_bundle();
     // Small frames, few points and a 9×9 window keep this debug-build test quick; the
     // code path is the one of full-size frames.
     let spec = ClipSpec {
@@ -131,5 +137,78 @@ fn ten_thousand_frames_allocate_nothing() {
     assert!(
         tracked > 8_000 && detections >= 1_000,
         "tracked {tracked}, detections {detections}"
+    );
+}
+
+#[test]
+fn the_pilot_loop_allocates_nothing_and_follows_two_signs() {
+    let bytes = two_variant_bundle();
+    let spec = ClipSpec {
+        width: 96,
+        height: 72,
+        sign_size: 24.0,
+        growth: 1.0,
+        velocity: (1.0, 0.5),
+        ..ClipSpec::standard(5, 24)
+    };
+    let clip = make_clip(&spec);
+    let (w, h) = (clip.width, clip.height);
+    let need = Pyramid::required_len(w, h, 3).unwrap();
+    let (mut wa, mut wb) = (vec![0u8; need], vec![0u8; need]);
+    let mut params = TrackerParams::DEFAULT;
+    params.lk.win_radius = 4;
+
+    COUNTING.with(|c| c.set(true));
+    let bundle = Bundle::parse(&bytes).unwrap();
+    let mut pilot: Pilot<'_, 2, 8> = Pilot::with_params(bundle, params);
+    let mut prev = Pyramid::new(&mut wa, w, h, 3).unwrap();
+    let mut next = Pyramid::new(&mut wb, w, h, 3).unwrap();
+    let (mut detections, mut tracked_frames, mut worst_iou) = (0u32, 0u32, 1.0f32);
+    for frame in 0..2_000u32 {
+        // forward through the clip, then start over (a cut: the tracker must cope)
+        let i = frame as usize % clip.frames.len();
+        next.build(&GrayImage::new(&clip.frames[i], w, h, w).unwrap())
+            .unwrap();
+        let have_prev = frame > 0 && i > 0;
+        match pilot.decide(frame, have_prev.then_some(&prev), &next) {
+            Decision::Detect { .. } => {
+                detections += 1;
+                // the "detector": the sign's true box, and a second, static one
+                let found = [
+                    Detection {
+                        bbox: clip.boxes[i],
+                        score: 0.95,
+                        class: 3,
+                    },
+                    Detection {
+                        bbox: frugal_runtime::BBox::new(4.0, 4.0, 20.0, 20.0),
+                        score: 0.7,
+                        class: 5,
+                    },
+                ];
+                pilot.detected(&next, &found);
+            }
+            Decision::Track => {
+                tracked_frames += 1;
+                if let Some(d) = pilot.tracked().find(|d| d.class == 3) {
+                    worst_iou = worst_iou.min(d.bbox.iou(&clip.boxes[i]));
+                }
+            }
+        }
+        std::mem::swap(&mut prev, &mut next);
+    }
+    COUNTING.with(|c| c.set(false));
+    let allocations = ALLOCATIONS.load(Ordering::SeqCst);
+    assert_eq!(
+        allocations, 0,
+        "{allocations} allocations in 2,000 pilot frames"
+    );
+    assert!(
+        tracked_frames > 1_500 && detections >= 150,
+        "tracked {tracked_frames}, detections {detections}"
+    );
+    assert!(
+        worst_iou > 0.6,
+        "the tracked sign drifted to IoU {worst_iou}"
     );
 }

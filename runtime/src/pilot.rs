@@ -1,0 +1,170 @@
+//! The whole per-frame perception loop around the [`Controller`]: up to `TRACKS` KLT
+//! trackers (one per detected sign, since a frame can hold several), the score
+//! hand-over, and the box the drone acts on. No allocation, no panics.
+//!
+//! Per frame `t`, with the frame's pyramid built into a caller buffer:
+//!
+//! 1. [`Pilot::decide`] tracks every held box from the previous pyramid into this one,
+//!    tells the controller the worst IoU against its detection and the worst point
+//!    quality, and returns its [`Decision`];
+//! 2. on [`Decision::Detect`], run that variant on the frame and hand its detections
+//!    (best first) to [`Pilot::detected`], which re-initialises the trackers;
+//! 3. on [`Decision::Track`], [`Pilot::tracked`] gives the tracked boxes with the
+//!    class and score of the detection each one started from.
+//!
+//! ```
+//! use frugal_runtime::bundle::write::{BundleWriter, FamilySpec, VariantSpec};
+//! use frugal_runtime::bundle::{ScoreBuckets, Thresholds};
+//! use frugal_runtime::pilot::Pilot;
+//! use frugal_runtime::track::Pyramid;
+//! use frugal_runtime::{Bundle, Decision};
+//!
+//! let bytes = BundleWriter::new(Thresholds::PAPER)
+//!     .family(FamilySpec { name: "cnn".into(), buckets: ScoreBuckets::PAPER_SVM })
+//!     .variant(VariantSpec::new("only", 0, 1.0, 10.0))
+//!     .policy(0, vec![0; 4])
+//!     .finish()?;
+//! let bundle = Bundle::parse(&bytes)?;
+//! let mut pilot: Pilot<'_, 4, 64> = Pilot::new(bundle);
+//! let (w, h) = (64, 48);
+//! let mut buf = vec![0u8; Pyramid::required_len(w, h, 3).unwrap()];
+//! let pyr = Pyramid::new(&mut buf, w, h, 3)?;
+//! assert!(matches!(pilot.decide(0, None, &pyr), Decision::Detect { variant: 0, .. }));
+//! pilot.detected(&pyr, &[]); // the detector found nothing
+//! assert_eq!(pilot.tracked().count(), 0);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+use crate::bundle::Bundle;
+use crate::controller::{Controller, Decision, Observation, TrackStatus};
+use crate::geom::{BBox, Detection};
+use crate::track::{Pyramid, Tracker, TrackerParams};
+
+/// One held track: its tracker and the detection it started from.
+#[derive(Clone, Debug)]
+struct Held<const POINTS: usize> {
+    tracker: Tracker<POINTS>,
+    detection: Detection,
+}
+
+/// The per-frame loop: a [`Controller`] plus up to `TRACKS` trackers of up to
+/// `POINTS` points each.
+#[derive(Clone, Debug)]
+pub struct Pilot<'b, const TRACKS: usize, const POINTS: usize> {
+    controller: Controller<'b>,
+    held: [Held<POINTS>; TRACKS],
+    active: usize,
+    score: Option<f32>,
+}
+
+impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
+    /// A pilot over `bundle`, with the default tracker parameters.
+    pub const fn new(bundle: Bundle<'b>) -> Self {
+        Self {
+            controller: Controller::new(bundle),
+            held: [const {
+                Held {
+                    tracker: Tracker::new(TrackerParams::DEFAULT),
+                    detection: Detection {
+                        bbox: BBox::new(0.0, 0.0, 0.0, 0.0),
+                        score: 0.0,
+                        class: 0,
+                    },
+                }
+            }; TRACKS],
+            active: 0,
+            score: None,
+        }
+    }
+
+    /// A pilot with given tracker parameters.
+    pub fn with_params(bundle: Bundle<'b>, params: TrackerParams) -> Self {
+        let mut pilot = Self::new(bundle);
+        for h in &mut pilot.held {
+            h.tracker = Tracker::new(params);
+        }
+        pilot
+    }
+
+    /// The controller (current variant, counters, bundle).
+    pub const fn controller(&self) -> &Controller<'b> {
+        &self.controller
+    }
+
+    /// How many boxes are being tracked.
+    pub const fn tracking(&self) -> usize {
+        self.active
+    }
+
+    /// Track the held boxes from `prev` into `cur` (skipped when `prev` is `None`) and
+    /// ask the controller what to do with frame `frame`.
+    pub fn decide(
+        &mut self,
+        frame: u32,
+        prev: Option<&Pyramid<'_>>,
+        cur: &Pyramid<'_>,
+    ) -> Decision {
+        let mut status: Option<TrackStatus> = None;
+        if let Some(prev) = prev {
+            let mut worst = (f32::INFINITY, f32::INFINITY);
+            let mut kept = 0;
+            for i in 0..self.active.min(TRACKS) {
+                let Some(h) = self.held.get_mut(i) else { break };
+                match h.tracker.track(prev, cur) {
+                    Ok(o) => {
+                        let iou = o.bbox.iou(&h.detection.bbox);
+                        if iou < worst.0 {
+                            worst.0 = iou;
+                            status = Some(TrackStatus {
+                                bbox: o.bbox,
+                                iou,
+                                quality: 0.0,
+                            });
+                        }
+                        worst.1 = worst.1.min(o.quality);
+                    }
+                    Err(_) => worst.1 = 0.0,
+                }
+                if h.tracker.is_active() {
+                    self.held.swap(kept, i);
+                    kept += 1;
+                }
+            }
+            self.active = kept;
+            if let Some(s) = status.as_mut() {
+                s.quality = worst.1;
+            }
+        }
+        self.controller.step(&Observation {
+            frame,
+            score: self.score,
+            track: status,
+        })
+    }
+
+    /// Hand over the detections (best first) that the last [`Decision::Detect`] asked
+    /// for, found on the frame whose pyramid is `cur`: the best score goes to the
+    /// controller on the next frame, and up to `TRACKS` boxes are tracked from here.
+    pub fn detected(&mut self, cur: &Pyramid<'_>, detections: &[Detection]) {
+        self.score = detections.first().map(|d| d.score);
+        self.active = 0;
+        for d in detections.iter().take(TRACKS) {
+            let Some(h) = self.held.get_mut(self.active) else {
+                break;
+            };
+            h.tracker.reset();
+            if h.tracker.init(cur, d.bbox).is_ok() {
+                h.detection = *d;
+                self.active += 1;
+            }
+        }
+    }
+
+    /// The tracked boxes, with the class and score of the detection each started from.
+    pub fn tracked(&self) -> impl Iterator<Item = Detection> + '_ {
+        self.held.iter().take(self.active).map(|h| Detection {
+            bbox: h.tracker.bbox(),
+            ..h.detection
+        })
+    }
+}
