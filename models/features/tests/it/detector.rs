@@ -249,7 +249,13 @@ fn training_without_signs_or_with_bad_classes_is_an_error() {
     let classes = vec!["a".to_string()];
     let cfg = TrainConfig::default();
     assert!(matches!(
-        train(std::slice::from_ref(&blank), &classes, &variants(), &cfg, &|_| {}),
+        train(
+            std::slice::from_ref(&blank),
+            &classes,
+            &variants(),
+            &cfg,
+            &|_| {}
+        ),
         Err(Error::Training(_))
     ));
     let mut bad = scene(1, 1);
