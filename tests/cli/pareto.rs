@@ -65,6 +65,9 @@ technique = { kind = "channels", keep = 0.5 }
 name = "drop2"
 technique = { kind = "drop_blocks", blocks = [2] }
 [[variants]]
+name = "p5"
+technique = { kind = "proposals", count = 5 }
+[[variants]]
 name = "res050"
 technique = { kind = "resolution", scale = 0.5 }
 [[variants]]
@@ -156,6 +159,7 @@ fn compress_then_pareto_on_a_tiny_model() {
         "mag50",
         "ch50",
         "drop2",
+        "p5",
         "res050",
         "res050-int8",
     ];
@@ -191,6 +195,7 @@ fn compress_then_pareto_on_a_tiny_model() {
     // channel pruning and block removal make physically smaller models
     assert!(rec("ch50")["parameters"].as_u64().unwrap() < base_params / 2);
     assert!(rec("drop2")["parameters"].as_u64().unwrap() < base_params);
+    assert_eq!(rec("p5")["parameters"].as_u64().unwrap(), base_params);
     // the resolution knob halves the exported input; int8 records its drift
     assert_eq!(
         rec("res050")["input_width"],

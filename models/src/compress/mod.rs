@@ -67,6 +67,12 @@ pub enum Technique {
         /// Block indices.
         blocks: Vec<usize>,
     },
+    /// Proposals kept after the RPN's NMS at inference (RoIAlign and the RoI head's
+    /// cost scale with it); no fine-tuning.
+    Proposals {
+        /// Proposals per frame (at least 1).
+        count: usize,
+    },
     /// Input resolution: `scale` × the dataset's frame size.
     Resolution {
         /// Fraction in `(0, 1]`.
@@ -132,6 +138,8 @@ impl Default for Grid {
                 spec("ch25", None, Channels { keep: 0.25 }),
                 spec("drop3", None, DropBlocks { blocks: vec![3] }),
                 spec("drop3-int8", Some("drop3"), int8()),
+                spec("p20", None, Proposals { count: 20 }),
+                spec("p20-int8", Some("p20"), int8()),
                 spec("res075", None, Resolution { scale: 0.75 }),
                 spec("res050", None, Resolution { scale: 0.5 }),
                 spec("res050-int8", Some("res050"), int8()),
@@ -433,6 +441,13 @@ pub fn compress(opts: &CompressOptions) -> Result<Vec<VariantRecord>, ModelError
             }
             Technique::Channels { keep } => model = prune::prune_channels(&model, *keep)?.0,
             Technique::DropBlocks { blocks } => model = prune::drop_blocks(&model, blocks)?,
+            Technique::Proposals { count } => {
+                tune = false;
+                let mut cfg = model.config().clone();
+                cfg.post_nms_test = *count;
+                cfg.pre_nms_test = cfg.pre_nms_test.max(*count);
+                model = prune::with_config(&model, cfg)?;
+            }
             Technique::Resolution { scale } => {
                 if !(*scale > 0.0 && *scale <= 1.0) {
                     return Err(ModelError::Config {

@@ -305,6 +305,16 @@ pub fn drop_blocks(model: &FasterRcnn, blocks: &[usize]) -> Result<FasterRcnn, M
     Ok(new)
 }
 
+/// The same weights under another config of the same structure (for the glue
+/// parameters: proposal counts, thresholds).
+pub fn with_config(model: &FasterRcnn, cfg: ModelConfig) -> Result<FasterRcnn, ModelError> {
+    let new = FasterRcnn::new(cfg, model.device())?;
+    for (name, t) in model.var_store().variables() {
+        set(&new, &name, &t.detach())?;
+    }
+    Ok(new)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
