@@ -273,13 +273,22 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
     let paths = Paths::new(&opts.out);
     let config = if opts.resume {
         let saved = Config::load(&paths.config)?;
-        if saved != opts.config {
+        // only `train.epochs` may change on resume (to extend a finished run; the
+        // learning-rate schedule is then recomputed over the new total)
+        let mut same = opts.config.clone();
+        same.train.epochs = saved.train.epochs;
+        if same != saved || opts.config.train.epochs < saved.train.epochs {
             return Err(ModelError::Config {
                 file: paths.config.display().to_string(),
-                msg: "the given config differs from the one this run was started with (omit --config to resume)".into(),
+                msg: "the given config differs from the one this run was started with (omit --config to resume; only a larger train.epochs may change)".into(),
             });
         }
-        saved
+        if opts.config.train.epochs != saved.train.epochs {
+            let json = serde_json::to_vec_pretty(&opts.config)
+                .map_err(|e| ModelError::Data(e.to_string()))?;
+            write_atomic(&paths.config, &json)?;
+        }
+        opts.config.clone()
     } else {
         opts.config.clone()
     };

@@ -84,6 +84,22 @@ fn train_resume_and_eval_on_a_tiny_dataset() {
         serde_json::from_slice(&std::fs::read(out.join("checkpoint/state.json")).unwrap()).unwrap();
     assert_eq!(state["epochs_done"], 2);
     assert_eq!(state["history"].as_array().unwrap().len(), 2);
+    // a finished run can be extended by a larger epoch count
+    frugal(&[
+        "train",
+        "--data",
+        p(&data),
+        "--out",
+        p(&out),
+        "--resume",
+        "--epochs",
+        "3",
+        "--quiet",
+    ])
+    .unwrap();
+    let state: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("checkpoint/state.json")).unwrap()).unwrap();
+    assert_eq!(state["epochs_done"], 3);
     for f in [
         "best.safetensors",
         "config.json",

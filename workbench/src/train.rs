@@ -23,6 +23,9 @@ pub struct TrainArgs {
     /// Stop after this many completed epochs (the run can be resumed later).
     #[arg(long)]
     pub stop_after: Option<usize>,
+    /// Override `train.epochs` (with --resume: extend a finished run to this many).
+    #[arg(long)]
+    pub epochs: Option<usize>,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -37,6 +40,10 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
             .with_context(|| format!("resuming {}", args.out.display()))?,
         (None, false) => Config::default(),
     };
+    let mut config = config;
+    if let Some(e) = args.epochs {
+        config.train.epochs = e;
+    }
     let report = train_model(&TrainOptions {
         data: args.data.clone(),
         out: args.out.clone(),
