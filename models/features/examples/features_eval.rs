@@ -40,8 +40,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if reused { "reused" } else { "generated" },
         ds.frames.len()
     );
-    let test = load_frames(&ds, Split::Test, test_stride, usize::MAX)?;
-    let cfg = TrainConfig::default();
+    // FEATURES_EVAL_SPLIT=val scores the validation split (for choosing settings);
+    // FEATURES_EVAL_INTERP=1 turns on HoG orientation interpolation.
+    let split = if std::env::var("FEATURES_EVAL_SPLIT").is_ok_and(|s| s == "val") {
+        Split::Val
+    } else {
+        Split::Test
+    };
+    let test = load_frames(&ds, split, test_stride, usize::MAX)?;
+    let cfg = TrainConfig {
+        orientation_interpolation: std::env::var("FEATURES_EVAL_INTERP").is_ok_and(|s| s == "1"),
+        ..TrainConfig::default()
+    };
     let out = dir.with_file_name("features-model.json");
     if train_stride == usize::MAX {
         // Reuse the saved model, skip proposal recall: a per-variant cost run.
