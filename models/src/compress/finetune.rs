@@ -35,7 +35,7 @@ pub struct FinetuneConfig {
 impl Default for FinetuneConfig {
     fn default() -> Self {
         Self {
-            steps: 60,
+            steps: 80,
             batch_size: 2,
             lr: 3e-4,
             frames: 400,

@@ -91,6 +91,12 @@ pub struct VariantSpec {
     pub parent: Option<String>,
     /// How.
     pub technique: Technique,
+    /// Fine-tuning steps for this variant (overrides the grid's `finetune.steps`).
+    #[serde(default)]
+    pub steps: Option<usize>,
+    /// Fine-tuning learning rate for this variant (overrides `finetune.lr`).
+    #[serde(default)]
+    pub lr: Option<f64>,
 }
 
 /// The variant grid of `frugal compress`.
@@ -114,7 +120,15 @@ fn spec(name: &str, parent: Option<&str>, technique: Technique) -> VariantSpec {
         name: name.into(),
         parent: parent.map(Into::into),
         technique,
+        steps: None,
+        lr: None,
     }
+}
+
+fn tuned(mut v: VariantSpec, steps: usize, lr: f64) -> VariantSpec {
+    v.steps = Some(steps);
+    v.lr = Some(lr);
+    v
 }
 
 impl Default for Grid {
@@ -129,14 +143,33 @@ impl Default for Grid {
             variants: vec![
                 spec("base", None, Base),
                 spec("base-int8", Some("base"), int8()),
+                spec(
+                    "base-int8-minmax",
+                    Some("base"),
+                    Int8 {
+                        calibration: Some(Calibration::MinMax),
+                    },
+                ),
+                spec(
+                    "base-int8-entropy",
+                    Some("base"),
+                    Int8 {
+                        calibration: Some(Calibration::Entropy),
+                    },
+                ),
                 spec("mag30", None, Magnitude { sparsity: 0.3 }),
                 spec("mag50", None, Magnitude { sparsity: 0.5 }),
                 spec("mag70", None, Magnitude { sparsity: 0.7 }),
                 spec("mag90", None, Magnitude { sparsity: 0.9 }),
-                spec("ch50", None, Channels { keep: 0.5 }),
+                spec("ch75", None, Channels { keep: 0.75 }),
+                tuned(spec("ch50", None, Channels { keep: 0.5 }), 150, 5e-4),
                 spec("ch50-int8", Some("ch50"), int8()),
-                spec("ch25", None, Channels { keep: 0.25 }),
-                spec("drop3", None, DropBlocks { blocks: vec![3] }),
+                // the RPN conv and fc1 start afresh after the block is removed
+                tuned(
+                    spec("drop3", None, DropBlocks { blocks: vec![3] }),
+                    250,
+                    1e-3,
+                ),
                 spec("drop3-int8", Some("drop3"), int8()),
                 spec("p20", None, Proposals { count: 20 }),
                 spec("p20-int8", Some("p20"), int8()),
@@ -463,14 +496,19 @@ pub fn compress(opts: &CompressOptions) -> Result<Vec<VariantRecord>, ModelError
         }
         let mut loss = None;
         if tune {
-            let steps = grid.finetune.steps;
+            let ft = FinetuneConfig {
+                steps: v.steps.unwrap_or(grid.finetune.steps),
+                lr: v.lr.unwrap_or(grid.finetune.lr),
+                ..grid.finetune.clone()
+            };
+            let steps = ft.steps;
             let progress = opts.progress;
             let name = v.name.clone();
             loss = Some(finetune::finetune(
                 &model,
                 &ds,
                 &base_cfg.train,
-                &grid.finetune,
+                &ft,
                 input,
                 masks.as_ref(),
                 |s, l| {
@@ -519,7 +557,11 @@ pub fn compress(opts: &CompressOptions) -> Result<Vec<VariantRecord>, ModelError
                 .map(|q| q.0.layers.iter().cloned().collect())
                 .unwrap_or_default(),
             drift,
-            finetune_steps: if tune { grid.finetune.steps } else { 0 },
+            finetune_steps: if tune {
+                v.steps.unwrap_or(grid.finetune.steps)
+            } else {
+                0
+            },
             finetune_loss: loss,
             files: vec![
                 file_record(&dir, BACKBONE_RPN_FILE)?,

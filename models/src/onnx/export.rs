@@ -123,6 +123,9 @@ pub struct QuantSpec {
 struct Val {
     name: String,
     q: Option<ActQuant>,
+    /// `(QuantizeLinear output, scale, zero point)` when `name` is a dequantized value,
+    /// so another consumer can get its own `DequantizeLinear`.
+    quantized: Option<[String; 3]>,
 }
 
 /// Insert `QuantizeLinear` → `DequantizeLinear` at activation point `point` when the
@@ -148,6 +151,7 @@ fn qdq(g: &mut GraphBuilder, quant: Option<&QuantSpec>, x: Val, point: &str) -> 
     Val {
         name: d,
         q: Some(p),
+        quantized: Some([q, s, z]),
     }
 }
 
@@ -241,7 +245,11 @@ fn linear(
 }
 
 fn plain(name: String) -> Val {
-    Val { name, q: None }
+    Val {
+        name,
+        q: None,
+        quantized: None,
+    }
 }
 
 /// Build both graphs for `height × width` input frames.
@@ -289,9 +297,20 @@ pub fn detector_graphs_quantized(
         }
     }
     let features = g.node("Identity", "features", &[&x.name], vec![]);
-    let fv = Val {
-        name: features.clone(),
-        q: x.q,
+    // the RPN conv reads its own DequantizeLinear of the quantized features: with the
+    // `Identity` (the graph output) between them, ONNX Runtime would not fuse the conv
+    let fv = match &x.quantized {
+        Some([q, s, z]) => Val {
+            name: g.node(
+                "DequantizeLinear",
+                "rpn.conv.input_dequant",
+                &[q, s, z],
+                vec![],
+            ),
+            q: x.q,
+            quantized: x.quantized.clone(),
+        },
+        None => plain(features.clone()),
     };
     let h = conv(&mut g, &vars, &fv, "rpn.conv", 1, quant)?;
     let h = g.node("Relu", "rpn.relu", &[&h], vec![]);
