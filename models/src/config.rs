@@ -196,6 +196,10 @@ pub struct TrainConfig {
     pub brightness: f32,
     /// Largest Gaussian noise σ (pixels in `[0, 1]`).
     pub noise: f32,
+    /// Zoom factor drawn in `[1/(1+z), 1+z]` (crop or pad back to size; boxes follow).
+    pub scale_jitter: f32,
+    /// Per-channel colour gain drawn in `[1 − g, 1 + g]`.
+    pub channel_gain: f32,
     /// Probability of a 3×3 Gaussian blur.
     pub blur_prob: f64,
     /// Validation frames scored per epoch (0 = the whole split).
@@ -211,11 +215,11 @@ impl Default for TrainConfig {
     fn default() -> Self {
         Self {
             seed: 7,
-            epochs: 5,
+            epochs: 4,
             batch_size: 4,
             optimizer: OptimizerKind::AdamW,
             lr: 1e-3,
-            weight_decay: 1e-4,
+            weight_decay: 0.05,
             warmup_steps: 100,
             final_lr_fraction: 0.02,
             rpn_batch: 256,
@@ -225,6 +229,8 @@ impl Default for TrainConfig {
             brightness: 0.3,
             noise: 0.03,
             blur_prob: 0.2,
+            scale_jitter: 0.3,
+            channel_gain: 0.1,
             val_frames: 300,
             train_frames: 0,
             threads: 1,

@@ -21,6 +21,7 @@ use crate::metrics::{ImageResult, Interpolation, Truth, evaluate};
 use crate::optim::{Optimizer, learning_rate};
 use crate::{FasterRcnn, ModelError, curves};
 use frugal_data::{Dataset, FrameRecord, Split};
+use frugal_runtime::BBox;
 use frugal_runtime::FrameRef;
 use indicatif::{ProgressBar, ProgressStyle};
 use rand::seq::SliceRandom;
@@ -159,6 +160,80 @@ pub fn augment(img: &Tensor, tc: &TrainConfig, rng: &mut ChaCha8Rng) -> Tensor {
         x = &x + x.randn_like() * f64::from(sigma);
     }
     x.clamp(0.0, 1.0)
+}
+
+/// Geometric augmentation: zoom by a factor in `[1/(1+z), 1+z]` (`z = scale_jitter`)
+/// about a random point, cropping or padding (grey) back to the original size; boxes
+/// follow, and objects left less than half visible are dropped. Per-channel colour
+/// gains in `[1 − g, 1 + g]` (`g = channel_gain`) are applied too. No flips.
+pub fn augment_geometry(
+    img: &Tensor,
+    truth: &[Truth],
+    tc: &TrainConfig,
+    rng: &mut ChaCha8Rng,
+) -> (Tensor, Vec<Truth>) {
+    let (_, _, h, w) = img.size4().unwrap_or((1, 3, 1, 1));
+    let mut x = img.shallow_clone();
+    if tc.channel_gain > 0.0 {
+        let g = tc.channel_gain.clamp(0.0, 0.9);
+        let gains: Vec<f32> = (0..3)
+            .map(|_| rng.random_range(1.0 - g..=1.0 + g))
+            .collect();
+        x = x * Tensor::from_slice(&gains)
+            .reshape([1, 3, 1, 1])
+            .to_device(img.device());
+    }
+    if tc.scale_jitter <= 0.0 {
+        return (x, truth.to_vec());
+    }
+    let z = 1.0 + tc.scale_jitter;
+    let s = rng.random_range(1.0 / z..=z);
+    let (nh, nw) = (
+        ((h as f32) * s).round().max(1.0) as i64,
+        ((w as f32) * s).round().max(1.0) as i64,
+    );
+    let scaled = x.upsample_bilinear2d([nh, nw], false, None, None);
+    let (sx, sy) = (nw as f32 / w as f32, nh as f32 / h as f32);
+    // offset of the scaled image inside the canvas (negative = cropped)
+    let ox = if nw >= w {
+        -rng.random_range(0..=nw - w)
+    } else {
+        rng.random_range(0..=w - nw)
+    };
+    let oy = if nh >= h {
+        -rng.random_range(0..=nh - h)
+    } else {
+        rng.random_range(0..=h - nh)
+    };
+    let canvas = if nw >= w && nh >= h {
+        scaled.narrow(3, -ox, w).narrow(2, -oy, h)
+    } else {
+        let mut c = Tensor::full([1, 3, h, w], 0.5, (Kind::Float, img.device()));
+        let (src_x, dst_x, len_x) = if ox < 0 { (-ox, 0, w) } else { (0, ox, nw) };
+        let (src_y, dst_y, len_y) = if oy < 0 { (-oy, 0, h) } else { (0, oy, nh) };
+        c.narrow(3, dst_x, len_x)
+            .narrow(2, dst_y, len_y)
+            .copy_(&scaled.narrow(3, src_x, len_x).narrow(2, src_y, len_y));
+        let _ = &mut c;
+        c
+    };
+    let boxes = truth
+        .iter()
+        .filter_map(|t| {
+            let b = BBox::new(
+                t.bbox.x1 * sx + ox as f32,
+                t.bbox.y1 * sy + oy as f32,
+                t.bbox.x2 * sx + ox as f32,
+                t.bbox.y2 * sy + oy as f32,
+            );
+            let c = b.clip(w as f32, h as f32);
+            (c.area() >= 0.5 * b.area() && c.width() >= 4.0 && c.height() >= 4.0).then_some(Truth {
+                class: t.class,
+                bbox: c,
+            })
+        })
+        .collect();
+    (canvas, boxes)
 }
 
 /// `[1, 3, H, W]` in `[0, 1]` → normalised with the model's mean / std.
@@ -376,8 +451,10 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
                 let rgb = ds
                     .load_rgb(f)
                     .map_err(|e| ModelError::Data(e.to_string()))?;
-                let x = normalise(&model, &augment(&image_tensor(&rgb), &tc, &mut rng));
-                let l = image_losses(&model, &x, &frame_truth(f), &tc, &mut rng);
+                let (x, truth) =
+                    augment_geometry(&image_tensor(&rgb), &frame_truth(f), &tc, &mut rng);
+                let x = normalise(&model, &augment(&x, &tc, &mut rng));
+                let l = image_losses(&model, &x, &truth, &tc, &mut rng);
                 for (p, t) in
                     parts
                         .iter_mut()
@@ -460,4 +537,48 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
         state,
         seconds: t0.elapsed().as_secs_f64(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn geometric_augmentation_moves_boxes_with_the_pixels() {
+        let (h, w) = (64i64, 96i64);
+        let img = Tensor::zeros([1, 3, h, w], (Kind::Float, Device::Cpu));
+        let _ = img.narrow(2, 20, 16).narrow(3, 30, 24).fill_(1.0);
+        let truth = [Truth {
+            class: 4,
+            bbox: BBox::new(30.0, 20.0, 54.0, 36.0),
+        }];
+        let tc = TrainConfig {
+            scale_jitter: 0.5,
+            channel_gain: 0.0,
+            ..Default::default()
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let mut seen = 0;
+        for _ in 0..40 {
+            let (x, t) = augment_geometry(&img, &truth, &tc, &mut rng);
+            assert_eq!(x.size(), vec![1, 3, h, w]);
+            for t in &t {
+                seen += 1;
+                assert_eq!(t.class, 4);
+                // the inner part of the moved box is still the white square
+                let b = t.bbox;
+                let (x1, y1) = (b.x1.ceil() as i64 + 1, b.y1.ceil() as i64 + 1);
+                let (x2, y2) = (b.x2.floor() as i64 - 1, b.y2.floor() as i64 - 1);
+                if x2 > x1 && y2 > y1 {
+                    let inner = x
+                        .narrow(2, y1, y2 - y1)
+                        .narrow(3, x1, x2 - x1)
+                        .mean(Kind::Float)
+                        .double_value(&[]);
+                    assert!(inner > 0.95, "box {b:?} covers mean {inner}");
+                }
+            }
+        }
+        assert!(seen > 20);
+    }
 }

@@ -72,6 +72,8 @@ fn draw(objects: &[(u16, u32, u32, u32)], seed: u32) -> (Vec<u8>, Vec<Truth>) {
 
 #[test]
 fn tiny_config_overfits_a_handful_of_images() {
+    // one intra-op thread: two OpenMP threads crawl on a shared 2-core machine
+    tch::set_num_threads(1);
     tch::manual_seed(11);
     let model = FasterRcnn::new(tiny_model(3), Device::Cpu).unwrap();
     let images = [
