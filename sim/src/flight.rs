@@ -74,7 +74,7 @@ impl Default for NavConfig {
             yaw_rate_deg: 90.0,
             rearm_distance: None,
             radius: 0.25,
-            time_limit_s: 1800.0,
+            time_limit_s: 3600.0,
             camera_fps: 60.0,
         }
     }

@@ -430,8 +430,9 @@ fn draw_top<DB: DrawingBackend>(
             .draw_series(LineSeries::new([b.a, b.b], colour.stroke_width(5)))
             .map_err(s)?;
         let (cx, cy) = b.center();
-        let off = if spec.mount == Mount::Flat { 0.45 } else { 0.0 };
-        let pos = (cx + b.normal.0 * off - 0.3, cy + b.normal.1 * off + 0.2);
+        // Labels go into the cell, clear of the board (text hangs below its anchor).
+        let off = if spec.mount == Mount::Flat { 0.9 } else { 0.2 };
+        let pos = (cx + b.normal.0 * off - 0.3, cy + b.normal.1 * off - 0.2);
         chart
             .draw_series(std::iter::once(Text::new(
                 sign_label(spec.sign),

@@ -42,7 +42,7 @@ pub struct FlyArgs {
     #[arg(long, default_value_t = 270)]
     pub height: u32,
     /// Simulated time limit per flight, seconds.
-    #[arg(long, default_value_t = 1800.0)]
+    #[arg(long, default_value_t = 3600.0)]
     pub time_limit: f64,
     /// Output folder; each maze gets `<out>/<maze name>/`.
     #[arg(long, default_value = "runs/fly")]
@@ -53,8 +53,8 @@ pub struct FlyArgs {
     /// Save the first seed's flight as an animated GIF (half resolution).
     #[arg(long)]
     pub gif: bool,
-    /// One GIF frame every N processed frames.
-    #[arg(long, default_value_t = 30)]
+    /// One GIF frame every N processed frames (shown 100 ms each).
+    #[arg(long, default_value_t = 60)]
     pub gif_every: u64,
     /// Hide progress bars.
     #[arg(long)]
