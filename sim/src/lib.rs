@@ -98,6 +98,7 @@ pub use flight::{
 };
 pub use maze::{Dir, Lighting, LineProblem, Maze, MazeError, Mount, SignSpec, WaitZone};
 pub use perception::{
-    DeviceProfile, FrameInput, GroundTruthPerception, Percept, Perception, PerceptionError,
+    DetectorPerception, DeviceProfile, FrameInput, GroundTruthPerception, Percept, Perception,
+    PerceptionError,
 };
 pub use render::{CameraSpec, FrameTruth, PedestrianTruth, Pose, Renderer, SignTruth};

@@ -587,3 +587,61 @@ fn low_light_is_darker_and_noisier() {
         roughness(&a)
     );
 }
+
+/// A pixel-based stand-in detector: the bounding box of sign-red pixels is a STOP sign.
+struct RedBlob;
+
+impl frugal_runtime::Detector for RedBlob {
+    type Error = String;
+    fn detect(
+        &mut self,
+        frame: frugal_runtime::FrameRef<'_>,
+        out: &mut [frugal_runtime::Detection],
+    ) -> Result<usize, String> {
+        let (mut x1, mut y1, mut x2, mut y2, mut n) = (u32::MAX, u32::MAX, 0, 0, 0);
+        for y in 0..frame.height {
+            for x in 0..frame.width {
+                if is_sign_red(px(frame.rgb, frame.width, x, y)) {
+                    (x1, y1, x2, y2) = (x1.min(x), y1.min(y), x2.max(x + 1), y2.max(y + 1));
+                    n += 1;
+                }
+            }
+        }
+        if n < 20 || out.is_empty() {
+            return Ok(0);
+        }
+        out[0] = frugal_runtime::Detection {
+            bbox: BBox::new(x1 as f32, y1 as f32, x2 as f32, y2 as f32),
+            score: 1.0,
+            class: Sign::Stop.id(),
+        };
+        Ok(1)
+    }
+}
+
+#[test]
+fn a_pixel_based_detector_closes_the_loop() {
+    let maze = corridor("sign stop 4 1 e 1.2");
+    let mut cfg = fast_config();
+    cfg.device = DeviceProfile::host();
+    let mut p = frugal_sim::DetectorPerception::new("red-blob", RedBlob);
+    let r = frugal_sim::fly(&maze, &cfg, &mut p, 1, None).unwrap();
+    assert_eq!(r.outcome, Outcome::Success, "{:?}", r.events);
+    assert_eq!(r.perception, "red-blob");
+    // It saw the STOP sign in (nearly) every frame where the ground truth had it.
+    assert!(
+        r.sign_hits as f64 >= 0.95 * r.sign_frames as f64,
+        "{} of {}",
+        r.sign_hits,
+        r.sign_frames
+    );
+    assert_eq!(r.false_detections, 0);
+    let land = r
+        .events
+        .iter()
+        .find(|e| e.what.starts_with("land"))
+        .unwrap();
+    // The red octagon is 92 % of the board, so the estimate runs ~8 % long: the drone
+    // lands a little closer than the 1.5 m half cell, still in the goal cell.
+    assert!(land.x > 15.0 - 1.6 && land.x < 15.0 - 1.2, "{land:?}");
+}
