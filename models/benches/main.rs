@@ -3,7 +3,8 @@
 //! - `detect/threads=N`: full inference (normalise, backbone + RPN, proposals,
 //!   RoIAlign + RoI head, per-class NMS) with `tch::set_num_threads(N)`, N = 1, 2;
 //! - `backbone_rpn/threads=N`: the first network alone;
-//! - `train_step/threads=2`: forward + backward of one image's losses.
+//! - `train_step/threads=1`: forward + backward of one image's losses (training runs
+//!   on one libtorch thread by default).
 //!
 //! Run: `cargo bench -p frugal-models --bench main` (add `-- --quick` for a short run).
 //! The weights are random: latency does not depend on them, except through the number
@@ -39,7 +40,7 @@ fn bench(c: &mut Criterion) {
             b.iter(|| tch::no_grad(|| black_box(model.backbone_rpn(&x).objectness)))
         });
     }
-    tch::set_num_threads(2);
+    tch::set_num_threads(1);
     let x = model.frame_tensor(f);
     let truth = [Truth {
         class: 2,
@@ -47,7 +48,7 @@ fn bench(c: &mut Criterion) {
     }];
     let tc = TrainConfig::default();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
-    c.bench_function("train_step/threads=2", |b| {
+    c.bench_function("train_step/threads=1", |b| {
         b.iter(|| {
             let l = image_losses(&model, &x, &truth, &tc, &mut rng).total();
             l.backward();
