@@ -383,7 +383,10 @@ impl FasterRcnn {
                 msg: format!("not a safetensors file ({e})"),
             })?;
         let vars = self.vs.variables();
-        for (name, var) in &vars {
+        let mut names: Vec<&String> = vars.keys().collect();
+        names.sort();
+        for name in names {
+            let var = &vars[name];
             let view = st.tensor(name).map_err(|_| ModelError::Checkpoint {
                 file: file.clone(),
                 msg: format!(
