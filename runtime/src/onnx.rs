@@ -84,11 +84,33 @@ pub enum OrtError {
     },
 }
 
-/// The ONNX Runtime environment, created once per process from `ORT_DYLIB_PATH`.
+/// Where the ONNX Runtime library is: `ORT_DYLIB_PATH` when set (cargo sets it from
+/// `.cargo/config.toml`); else the workspace's `.deps/onnxruntime/` seen from a binary
+/// in `target/<profile>/` (or its `deps/`, `examples/`); else the system's
+/// `libonnxruntime.so`.
+fn library_path() -> String {
+    if let Ok(path) = std::env::var("ORT_DYLIB_PATH") {
+        return path;
+    }
+    let exe = std::env::current_exe().ok();
+    let near_exe = exe.iter().flat_map(|exe| {
+        exe.ancestors()
+            .skip(2)
+            .take(3)
+            .map(|dir| dir.join(".deps/onnxruntime/libonnxruntime.so"))
+            .collect::<Vec<_>>()
+    });
+    near_exe.into_iter().find(|p| p.is_file()).map_or_else(
+        || "libonnxruntime.so".to_string(),
+        |p| p.display().to_string(),
+    )
+}
+
+/// The ONNX Runtime environment, created once per process (see [`library_path`]).
 fn environment() -> Result<&'static ort::environment::Environment, OrtError> {
     static ENV: OnceLock<Result<ort::environment::Environment, (String, String)>> = OnceLock::new();
     let env = ENV.get_or_init(|| {
-        let path = std::env::var("ORT_DYLIB_PATH").unwrap_or_else(|_| "libonnxruntime.so".into());
+        let path = library_path();
         let builder = ort::init_from(&path).map_err(|e| (path.clone(), e.to_string()))?;
         builder
             .with_name("frugal")
