@@ -3,7 +3,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use frugal_data::{Dataset, Split};
 use frugal_models::FasterRcnn;
-use frugal_models::onnx::{OrtDetector, export_detector, parity};
+use frugal_models::onnx::{OrtDetector, StageTimes, export_detector, parity};
 use frugal_pareto::{Latency, measure};
 use frugal_runtime::FrameRef;
 use serde::Serialize;
@@ -72,6 +72,44 @@ pub struct BenchRow {
     pub threads: usize,
     /// The timings.
     pub latency: Latency,
+    /// Where the time goes (ONNX Runtime rows only).
+    pub stages: Option<StageMedians>,
+}
+
+/// Median time of each stage of the ONNX Runtime executor, ms.
+#[derive(Debug, Serialize)]
+pub struct StageMedians {
+    /// Normalisation (and resizing) in Rust.
+    pub preprocess_ms: f64,
+    /// The backbone + RPN graph.
+    pub backbone_ms: f64,
+    /// Proposal decoding and NMS in Rust.
+    pub proposals_ms: f64,
+    /// The RoI-head graph.
+    pub head_ms: f64,
+    /// Detection decoding and per-class NMS in Rust.
+    pub detections_ms: f64,
+}
+
+impl StageMedians {
+    fn of(times: &[StageTimes]) -> Self {
+        let med = |f: fn(&StageTimes) -> f64| {
+            let v: Vec<f64> = times.iter().map(f).collect();
+            Latency::from_samples(&v).map_or(0.0, |l| l.median_ms)
+        };
+        Self {
+            preprocess_ms: med(|t| t.preprocess_ms),
+            backbone_ms: med(|t| t.backbone_ms),
+            proposals_ms: med(|t| t.proposals_ms),
+            head_ms: med(|t| t.head_ms),
+            detections_ms: med(|t| t.detections_ms),
+        }
+    }
+
+    /// Time in the Rust glue between and around the graphs.
+    pub fn glue_ms(&self) -> f64 {
+        self.preprocess_ms + self.proposals_ms + self.detections_ms
+    }
 }
 
 /// Run `frugal export`.
@@ -138,16 +176,22 @@ pub fn bench(args: BenchArgs) -> Result<()> {
     let mut rows = Vec::new();
     for &threads in &args.threads {
         let mut ort = OrtDetector::open(&onnx_dir, threads)?;
+        let mut stages = Vec::new();
         let ort_lat = measure(args.warmup, args.runs, |i| {
             let (w, h, px) = &frames[i % frames.len()];
             let frame = FrameRef::new(*w, *h, px).context("frame size")?;
-            ort.detect(frame).map(|_| ()).map_err(anyhow::Error::from)
+            let (_, times) = ort.detect_timed(frame)?;
+            if i >= args.warmup {
+                stages.push(times);
+            }
+            Ok::<(), anyhow::Error>(())
         })?
         .context("no timed runs")?;
         rows.push(BenchRow {
             engine: "onnxruntime",
             threads,
             latency: ort_lat,
+            stages: Some(StageMedians::of(&stages)),
         });
         tch::set_num_threads(threads as i32);
         let tch_lat = measure(args.warmup, args.runs, |i| {
@@ -161,6 +205,7 @@ pub fn bench(args: BenchArgs) -> Result<()> {
             engine: "libtorch",
             threads,
             latency: tch_lat,
+            stages: None,
         });
     }
     println!(
@@ -180,6 +225,21 @@ pub fn bench(args: BenchArgs) -> Result<()> {
             r.latency.p90_ms,
             1e3 / r.latency.median_ms
         );
+    }
+    for r in &rows {
+        if let Some(s) = &r.stages {
+            println!(
+                "onnxruntime, {} thread(s), median ms per stage: normalise {:.2}, backbone+RPN graph {:.2}, \
+                 proposals {:.2}, RoI-head graph {:.2}, detections {:.2} (Rust glue {:.2})",
+                r.threads,
+                s.preprocess_ms,
+                s.backbone_ms,
+                s.proposals_ms,
+                s.head_ms,
+                s.detections_ms,
+                s.glue_ms()
+            );
+        }
     }
     for &threads in &args.threads {
         let get = |e: &str| {
