@@ -19,6 +19,15 @@
 //! - **resolution**: a smaller fixed input (the executor resizes incoming frames and
 //!   scales boxes back), fine-tuned at that size.
 //!
+//! **Measured** (default grid on the default model, 360 validation frames, ONNX Runtime
+//! 1.31, one thread, all variants interleaved on a shared 2-core machine; medians):
+//! fp32 base 26.1 ms, mAP@0.5 0.712; int8 (percentile 99.99) 13.7 ms (1.90×), mAP
+//! 0.698; int8 (min-max) 13.6 ms, 0.708; 50 % channel-pruned 7.6 ms (3.4× faster than
+//! its parent), 0.537 after 150 fine-tuning steps; magnitude pruning 30–90 % 26.1–26.3 ms
+//! (dense kernels: no gain). The end-to-end int8 ratio is capped by `RoiAlign`, which
+//! stays fp32 (the backbone graph alone runs 2.7× faster in int8). Entropy calibration
+//! clipped the activations too tightly here (mAP 0.659).
+//!
 //! Every variant folder `<out>/<name>/` holds `backbone_rpn.onnx`, `roi_head.onnx`,
 //! `variant.json` ([`VariantRecord`]: parent, technique, parameters, sizes, SHA-256)
 //! and, for fp32 variants, `model/` (config + weights) from which children start.
