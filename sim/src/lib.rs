@@ -86,6 +86,7 @@
 //! landing within the time limit ends it as a failure.
 #![deny(missing_docs)]
 
+pub mod adaptive;
 pub mod flight;
 pub mod maze;
 pub mod perception;
@@ -93,6 +94,7 @@ pub mod render;
 pub mod report;
 pub mod texture;
 
+pub use adaptive::{AdaptivePerception, static_onnx};
 pub use flight::{
     FlightConfig, FlightError, FlightResult, FrameView, Mode, NavConfig, Outcome, fly,
 };

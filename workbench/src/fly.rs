@@ -26,6 +26,15 @@ pub struct FlyArgs {
     /// What perceives the signs.
     #[arg(long, value_enum, default_value_t = PerceptionKind::GroundTruth)]
     pub perception: PerceptionKind,
+    /// The ONNX variant folder of `--perception static`.
+    #[arg(long)]
+    pub variant: Option<PathBuf>,
+    /// The bundle folder of `--perception adaptive`.
+    #[arg(long)]
+    pub bundle: Option<PathBuf>,
+    /// ONNX Runtime intra-op threads for detector-based perception.
+    #[arg(long, default_value_t = 1)]
+    pub threads: usize,
     /// Compute time per frame of the ground-truth perception, ms (before the slowdown).
     #[arg(long, default_value_t = 5.0)]
     pub gt_compute_ms: f64,
@@ -61,21 +70,45 @@ pub struct FlyArgs {
     pub quiet: bool,
 }
 
-/// Perception choices. The detector-based ones (a static ONNX variant, the adaptive
-/// runtime) plug into `frugal_sim::Perception` once the bundle exists.
+/// Perception choices.
 #[derive(ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PerceptionKind {
     /// Exact boxes from the renderer's projection, fixed compute time.
     GroundTruth,
+    /// One exported ONNX variant (`--variant DIR`) on every frame, through ONNX
+    /// Runtime: the paper's static baseline.
+    Static,
+    /// The adaptive runtime of a policy bundle (`--bundle DIR`): controller, KLT
+    /// trackers and the bundle's ONNX variants, exactly as on the drone.
+    Adaptive,
 }
 
-fn perception(args: &FlyArgs) -> Box<dyn Perception> {
-    match args.perception {
+fn perception(args: &FlyArgs) -> anyhow::Result<Box<dyn Perception>> {
+    Ok(match args.perception {
         PerceptionKind::GroundTruth => Box::new(GroundTruthPerception {
             compute_ms: args.gt_compute_ms,
             ..GroundTruthPerception::default()
         }),
-    }
+        PerceptionKind::Static => {
+            let dir = args
+                .variant
+                .as_ref()
+                .context("--perception static needs --variant DIR (an ONNX export)")?;
+            Box::new(
+                frugal_sim::static_onnx(dir, args.threads).map_err(|e| anyhow::anyhow!("{e}"))?,
+            )
+        }
+        PerceptionKind::Adaptive => {
+            let dir = args
+                .bundle
+                .as_ref()
+                .context("--perception adaptive needs --bundle DIR (from `frugal bundle write`)")?;
+            Box::new(
+                frugal_sim::AdaptivePerception::open(dir, args.threads)
+                    .map_err(|e| anyhow::anyhow!("{e}"))?,
+            )
+        }
+    })
 }
 
 /// Run `frugal fly`.
@@ -153,7 +186,7 @@ fn fly_maze(
     bar.set_prefix(maze.name.clone());
     let mut results = Vec::new();
     for seed in args.seed..args.seed + args.seeds {
-        let mut p = perception(args);
+        let mut p = perception(args)?;
         let first = seed == args.seed;
         let mut gif = if first && args.gif {
             Some(GifRecorder::create(&dir.join("flight.gif"), 100)?)

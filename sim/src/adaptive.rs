@@ -1,0 +1,135 @@
+//! Detector-based perception through the deployment path: a static ONNX variant every
+//! frame ([`static_onnx`]), or the adaptive runtime ([`AdaptivePerception`]): the
+//! policy bundle's [`Pilot`] (controller + KLT trackers) deciding per frame, the chosen
+//! variant run through ONNX Runtime — the same code as on the drone
+//! (`frugal-runtime`'s `drone_loop` example).
+use crate::perception::{DetectorPerception, FrameInput, Percept, Perception, PerceptionError};
+use frugal_runtime::onnx::OrtDetector;
+use frugal_runtime::pilot::Pilot;
+use frugal_runtime::track::{Pyramid, rgb_to_gray};
+use frugal_runtime::{Bundle, Decision};
+use std::path::Path;
+use std::time::Instant;
+
+/// The bundle file inside a bundle folder (written by `frugal bundle write`).
+pub const BUNDLE_FILE: &str = "policy.frpb";
+
+/// One ONNX variant every frame (the paper's static baseline).
+pub fn static_onnx(
+    dir: &Path,
+    threads: usize,
+) -> Result<DetectorPerception<OrtDetector>, PerceptionError> {
+    let detector = OrtDetector::open(dir, threads)?;
+    let name = dir
+        .file_name()
+        .map_or("onnx".into(), |n| n.to_string_lossy().into_owned());
+    Ok(DetectorPerception::new(format!("static-{name}"), detector))
+}
+
+/// The adaptive runtime in the loop.
+pub struct AdaptivePerception {
+    bundle: Bundle<'static>,
+    pilot: Pilot<'static, 4, 64>,
+    detectors: Vec<OrtDetector>,
+    prev: Vec<u8>,
+    cur: Vec<u8>,
+    gray: Vec<u8>,
+    size: (usize, usize),
+    have_prev: bool,
+    label: String,
+    /// Detections per variant so far.
+    pub detections_per_variant: Vec<u64>,
+}
+
+impl AdaptivePerception {
+    /// Open the bundle in `dir` and every ONNX variant it names (up front, so opening
+    /// is not counted as flight time). The bundle bytes live as long as the process
+    /// (a few kilobytes), since the zero-copy reader borrows them.
+    pub fn open(dir: &Path, threads: usize) -> Result<Self, PerceptionError> {
+        let path = dir.join(BUNDLE_FILE);
+        let bytes = std::fs::read(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+        let bundle = Bundle::parse(bytes).map_err(|e| format!("{}: {e}", path.display()))?;
+        let mut detectors = Vec::new();
+        for (_, v) in bundle.variants() {
+            let graph = dir.join(v.onnx_file);
+            let vdir = graph.parent().ok_or_else(|| {
+                format!("{}: variant {} has no ONNX file", path.display(), v.name)
+            })?;
+            detectors.push(OrtDetector::open(vdir, threads)?);
+        }
+        let n = detectors.len();
+        Ok(Self {
+            bundle,
+            pilot: Pilot::new(bundle),
+            detectors,
+            prev: Vec::new(),
+            cur: Vec::new(),
+            gray: Vec::new(),
+            size: (0, 0),
+            have_prev: false,
+            label: format!(
+                "adaptive-{}",
+                dir.file_name()
+                    .map_or("bundle".into(), |n| n.to_string_lossy())
+            ),
+            detections_per_variant: vec![0; n],
+        })
+    }
+
+    /// The parsed bundle.
+    pub fn bundle(&self) -> &Bundle<'static> {
+        &self.bundle
+    }
+}
+
+impl Perception for AdaptivePerception {
+    fn name(&self) -> String {
+        self.label.clone()
+    }
+
+    fn perceive(&mut self, input: &FrameInput<'_>) -> Result<Percept, PerceptionError> {
+        let started = Instant::now();
+        let frame = input.image;
+        let (w, h) = (frame.width as usize, frame.height as usize);
+        let levels = 3;
+        if (w, h) != self.size {
+            let need = Pyramid::required_len(w, h, levels).ok_or("frame too small to track")?;
+            self.prev = vec![0; need];
+            self.cur = vec![0; need];
+            self.gray = vec![0; w * h];
+            self.size = (w, h);
+            self.have_prev = false;
+        }
+        let gray = rgb_to_gray(&frame, &mut self.gray)?;
+        let mut cur = Pyramid::new(&mut self.cur, w, h, levels)?;
+        cur.build(&gray)?;
+        let prev = if self.have_prev {
+            Some(Pyramid::new(&mut self.prev, w, h, levels)?)
+        } else {
+            None
+        };
+        let detections = match self.pilot.decide(input.index as u32, prev.as_ref(), &cur) {
+            Decision::Detect { variant, .. } => {
+                let v = usize::from(variant);
+                let det = self
+                    .detectors
+                    .get_mut(v)
+                    .ok_or("the policy names a variant outside the bundle")?;
+                let found = det.detect(frame)?;
+                self.pilot.detected(&cur, &found);
+                if let Some(n) = self.detections_per_variant.get_mut(v) {
+                    *n += 1;
+                }
+                found
+            }
+            Decision::Track => self.pilot.tracked().collect(),
+        };
+        std::mem::swap(&mut self.prev, &mut self.cur);
+        self.have_prev = true;
+        Ok(Percept {
+            detections,
+            compute_ms: started.elapsed().as_secs_f64() * 1e3,
+        })
+    }
+}
