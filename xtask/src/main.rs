@@ -96,7 +96,9 @@ fn cache_dir() -> Result<PathBuf> {
     }
     std::env::var_os("HOME")
         .map(|home| PathBuf::from(home).join(".cache").join("frugal"))
-        .ok_or_else(|| "neither FRUGAL_CACHE nor HOME is set: set FRUGAL_CACHE to a writable folder".into())
+        .ok_or_else(|| {
+            "neither FRUGAL_CACHE nor HOME is set: set FRUGAL_CACHE to a writable folder".into()
+        })
 }
 
 /// Run a command, failing with `what` and its exit status.
@@ -118,11 +120,14 @@ fn cargo() -> Command {
 }
 
 fn sha256_of(path: &Path) -> Result<String> {
-    let mut file = fs::File::open(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let mut file =
+        fs::File::open(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
     let mut hasher = Sha256::new();
     let mut buf = vec![0u8; 1 << 20];
     loop {
-        let n = file.read(&mut buf).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        let n = file
+            .read(&mut buf)
+            .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
         if n == 0 {
             break;
         }
@@ -156,14 +161,29 @@ fn fetch_wheel(wheels: &Path, wheel: &Wheel) -> Result<PathBuf> {
     if path.exists() && sha256_of(&path)? == wheel.sha256 {
         return Ok(path);
     }
-    eprintln!("xtask: downloading {} into {}", wheel.spec, wheels.display());
+    eprintln!(
+        "xtask: downloading {} into {}",
+        wheel.spec,
+        wheels.display()
+    );
     fs::create_dir_all(wheels).map_err(|e| format!("cannot create {}: {e}", wheels.display()))?;
     run(
         Command::new("python3")
-            .args(["-m", "pip", "download", "--no-deps", "--only-binary=:all:", "--quiet", "-d"])
+            .args([
+                "-m",
+                "pip",
+                "download",
+                "--no-deps",
+                "--only-binary=:all:",
+                "--quiet",
+                "-d",
+            ])
             .arg(wheels)
             .arg(wheel.spec),
-        &format!("downloading {} (check the network and pip's index settings, then run again)", wheel.spec),
+        &format!(
+            "downloading {} (check the network and pip's index settings, then run again)",
+            wheel.spec
+        ),
     )?;
     if !path.exists() {
         return Err(format!(
@@ -220,7 +240,8 @@ fn build_dir(dir: &Path, fill: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
     let _ = fs::remove_dir_all(&tmp);
     fs::create_dir_all(&tmp).map_err(|e| format!("cannot create {}: {e}", tmp.display()))?;
     fill(&tmp)?;
-    fs::write(tmp.join(".complete"), b"").map_err(|e| format!("cannot write in {}: {e}", tmp.display()))?;
+    fs::write(tmp.join(".complete"), b"")
+        .map_err(|e| format!("cannot write in {}: {e}", tmp.display()))?;
     let _ = fs::remove_dir_all(dir);
     fs::rename(&tmp, dir).map_err(|e| format!("cannot move {} into place: {e}", dir.display()))
 }
@@ -246,7 +267,12 @@ fn assemble_libtorch(cache: &Path) -> Result<PathBuf> {
             "nvidia/cu13/",
             tmp,
         )?;
-        extract(&cupti, &["nvidia/cu13/lib/libcupti.so.13"], "nvidia/cu13/", tmp)?;
+        extract(
+            &cupti,
+            &["nvidia/cu13/lib/libcupti.so.13"],
+            "nvidia/cu13/",
+            tmp,
+        )?;
         // torch-sys always links `-ltorch`; the wheel's libtorch.so pulls in the CUDA
         // libraries, so an empty library of that name stands in for it.
         let empty_c = tmp.join("empty.c");
@@ -270,7 +296,12 @@ fn assemble_onnxruntime(cache: &Path) -> Result<PathBuf> {
     let wheels = cache.join("wheels");
     build_dir(&dir, |tmp| {
         let wheel = fetch_wheel(&wheels, &ONNXRUNTIME)?;
-        extract(&wheel, &[&format!("onnxruntime/capi/{ORT_LIB}")], "onnxruntime/capi/", tmp)?;
+        extract(
+            &wheel,
+            &[&format!("onnxruntime/capi/{ORT_LIB}")],
+            "onnxruntime/capi/",
+            tmp,
+        )?;
         symlink(Path::new(ORT_LIB), &tmp.join("libonnxruntime.so"))
     })?;
     Ok(dir)
@@ -278,13 +309,18 @@ fn assemble_onnxruntime(cache: &Path) -> Result<PathBuf> {
 
 /// The Python test peers, in a virtual environment keyed by the requirements' hash.
 fn python_env(cache: &Path) -> Result<PathBuf> {
-    let reqs = workspace_root().join("tests").join("python-requirements.txt");
+    let reqs = workspace_root()
+        .join("tests")
+        .join("python-requirements.txt");
     let key = sha256_of(&reqs)?;
     let dir = cache.join(format!("venv-{}", &key[..12]));
     if dir.join(".complete").exists() {
         return Ok(dir);
     }
-    eprintln!("xtask: installing the Python test peers into {}", dir.display());
+    eprintln!(
+        "xtask: installing the Python test peers into {}",
+        dir.display()
+    );
     let _ = fs::remove_dir_all(&dir);
     run(
         Command::new("python3").args(["-m", "venv"]).arg(&dir),
@@ -292,11 +328,19 @@ fn python_env(cache: &Path) -> Result<PathBuf> {
     )?;
     run(
         Command::new(dir.join("bin/python"))
-            .args(["-m", "pip", "install", "--quiet", "--disable-pip-version-check", "-r"])
+            .args([
+                "-m",
+                "pip",
+                "install",
+                "--quiet",
+                "--disable-pip-version-check",
+                "-r",
+            ])
             .arg(&reqs),
         "installing the Python test peers (check the network and pip's index settings, then run again)",
     )?;
-    fs::write(dir.join(".complete"), b"").map_err(|e| format!("cannot write in {}: {e}", dir.display()))?;
+    fs::write(dir.join(".complete"), b"")
+        .map_err(|e| format!("cannot write in {}: {e}", dir.display()))?;
     Ok(dir)
 }
 
@@ -305,7 +349,10 @@ fn bare_metal_target() -> Result<()> {
         .args(["target", "list", "--installed"])
         .output()
         .map_err(|e| format!("rustup is needed to add {BARE_METAL_TARGET}: {e}"))?;
-    if String::from_utf8_lossy(&installed.stdout).lines().any(|l| l.trim() == BARE_METAL_TARGET) {
+    if String::from_utf8_lossy(&installed.stdout)
+        .lines()
+        .any(|l| l.trim() == BARE_METAL_TARGET)
+    {
         return Ok(());
     }
     run(
@@ -332,13 +379,19 @@ fn system_packages() -> Result<()> {
         return Ok(());
     }
     eprintln!("xtask: installing {}", missing.join(" "));
-    run(Command::new("apt-get").arg("update").arg("-qq"), "apt-get update")?;
+    run(
+        Command::new("apt-get").arg("update").arg("-qq"),
+        "apt-get update",
+    )?;
     run(
         Command::new("apt-get")
             .args(["install", "-y", "-qq", "--no-install-recommends"])
             .args(&missing)
             .env("DEBIAN_FRONTEND", "noninteractive"),
-        &format!("apt-get install {} (run as root, or install them by hand)", missing.join(" ")),
+        &format!(
+            "apt-get install {} (run as root, or install them by hand)",
+            missing.join(" ")
+        ),
     )
 }
 
@@ -348,8 +401,13 @@ fn symlink(target: &Path, link: &Path) -> Result<()> {
     }
     let _ = fs::remove_file(link);
     let _ = fs::remove_dir_all(link);
-    std::os::unix::fs::symlink(target, link)
-        .map_err(|e| format!("cannot link {} -> {}: {e}", link.display(), target.display()))
+    std::os::unix::fs::symlink(target, link).map_err(|e| {
+        format!(
+            "cannot link {} -> {}: {e}",
+            link.display(),
+            target.display()
+        )
+    })
 }
 
 /// Everything the workspace needs; returns the `.deps` folder.
@@ -372,15 +430,28 @@ fn setup() -> Result<PathBuf> {
 
 fn main_job(args: &[String]) -> Result<()> {
     run(
-        cargo().args(["run", "--release", "--quiet", "-p", "frugal", "--", "run"]).args(args),
+        cargo()
+            .args(["run", "--release", "--quiet", "-p", "frugal", "--", "run"])
+            .args(args),
         "frugal run",
     )
 }
 
 fn test_all() -> Result<()> {
-    run(cargo().args(["fmt", "--all", "--check"]), "cargo fmt --check (run `cargo fmt --all`)")?;
     run(
-        cargo().args(["clippy", "--workspace", "--all-targets", "--quiet", "--", "-D", "warnings"]),
+        cargo().args(["fmt", "--all", "--check"]),
+        "cargo fmt --check (run `cargo fmt --all`)",
+    )?;
+    run(
+        cargo().args([
+            "clippy",
+            "--workspace",
+            "--all-targets",
+            "--quiet",
+            "--",
+            "-D",
+            "warnings",
+        ]),
         "cargo clippy",
     )?;
     run(

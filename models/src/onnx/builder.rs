@@ -119,9 +119,8 @@ impl GraphBuilder {
         (1..)
             .map(|i| format!("{stem}_{i}"))
             .find(|n| !self.names.contains(n))
-            .map(|n| {
+            .inspect(|n| {
                 self.names.insert(n.clone());
-                n
             })
             .unwrap_or_default()
     }
