@@ -400,3 +400,21 @@ pub fn table(r: &ParetoReport) -> String {
     }
     s
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn confidence_histogram_counts_top_scores_and_misses() {
+        let h = histogram(&[Some(0.0), Some(0.96), Some(1.0), None, Some(0.52), None]);
+        assert_eq!(h.frames, 6);
+        assert_eq!(h.no_detection, 2);
+        assert_eq!(h.counts.len(), CONFIDENCE_BINS);
+        assert_eq!(h.counts.iter().sum::<usize>(), 4);
+        // 1.0 falls in the last bin, 0.96 too, 0.52 in bin 10, 0.0 in bin 0
+        assert_eq!((h.counts[0], h.counts[10], h.counts[19]), (1, 1, 2));
+        assert!((h.mean_top_score - (0.0 + 0.96 + 1.0 + 0.52) / 4.0).abs() < 1e-6);
+        assert_eq!(histogram(&[]).mean_top_score, 0.0);
+    }
+}
