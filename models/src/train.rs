@@ -179,9 +179,11 @@ pub fn augment_geometry(
         let gains: Vec<f32> = (0..3)
             .map(|_| rng.random_range(1.0 - g..=1.0 + g))
             .collect();
-        x = x * Tensor::from_slice(&gains)
+        // not `*=`: `x` shares its storage with `img`, which must stay untouched
+        let gains = Tensor::from_slice(&gains)
             .reshape([1, 3, 1, 1])
             .to_device(img.device());
+        x = x.multiply(&gains);
     }
     if tc.scale_jitter <= 0.0 {
         return (x, truth.to_vec());

@@ -196,20 +196,20 @@ fn fly_maze(
         let mut failure: Option<report::ReportError> = None;
         let frames_dir = dir.join("frames");
         let mut observe = |v: &FrameView<'_>| {
-            if v.index % 100 == 0 {
+            if v.index.is_multiple_of(100) {
                 bar.set_message(format!("seed {seed}: t = {:.0} s", v.time_s));
             }
             if failure.is_some() || !first {
                 return;
             }
-            if args.frames_every > 0 && v.index % args.frames_every == 0 {
+            if args.frames_every > 0 && v.index.is_multiple_of(args.frames_every) {
                 let path = frames_dir.join(format!("frame_{:06}.png", v.index));
                 if let Err(e) = report::save_frame_png(&path, v) {
                     failure = Some(e);
                 }
             }
             if let Some(g) = gif.as_mut()
-                && v.index % args.gif_every.max(1) == 0
+                && v.index.is_multiple_of(args.gif_every.max(1))
                 && let Err(e) = g.push(v)
             {
                 failure = Some(e);
