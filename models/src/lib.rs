@@ -27,7 +27,10 @@
 //! confusion matrix) does not use `tch` at all. [`train`] and [`eval`] are the library
 //! side of `frugal train` / `frugal eval`.
 //!
-//! ```
+//! (The example is compiled but not run by `cargo test`: doctest binaries are built in
+//! a temporary folder where the loader cannot find libtorch.)
+//!
+//! ```no_run
 //! use frugal_models::{FasterRcnn, config::ModelConfig};
 //! use frugal_runtime::FrameRef;
 //! tch::manual_seed(0);
