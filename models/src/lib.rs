@@ -53,6 +53,8 @@ mod model;
 pub mod onnx;
 pub mod optim;
 pub mod roi_align;
+#[cfg(test)]
+mod testing;
 pub mod train;
 
 pub use model::{FasterRcnn, LayerInfo, RpnOutput, boxes_tensor};

@@ -318,34 +318,9 @@ pub fn with_config(model: &FasterRcnn, cfg: ModelConfig) -> Result<FasterRcnn, M
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::BlockConfig;
 
     pub(crate) fn tiny(seed: i64) -> FasterRcnn {
-        tch::manual_seed(seed);
-        let cfg = ModelConfig {
-            num_classes: 3,
-            backbone: vec![
-                BlockConfig {
-                    out_channels: 8,
-                    stride: 2,
-                    convs: 1,
-                },
-                BlockConfig {
-                    out_channels: 16,
-                    stride: 2,
-                    convs: 2,
-                },
-                BlockConfig {
-                    out_channels: 12,
-                    stride: 1,
-                    convs: 1,
-                },
-            ],
-            rpn_channels: 8,
-            roi_hidden: 32,
-            ..ModelConfig::default()
-        };
-        let m = FasterRcnn::new(cfg, Device::Cpu).unwrap();
+        let m = crate::testing::tiny_model(seed, &[(8, 2, 1), (16, 2, 2), (12, 1, 1)]);
         // non-zero biases so that zeroed filters matter
         for (n, t) in m.var_store().variables() {
             if n.ends_with(".bias") {

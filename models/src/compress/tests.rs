@@ -1,71 +1,15 @@
 //! Tests of the compression driver's pieces that need more than one sub-module.
 use super::*;
-use crate::config::{BlockConfig, ModelConfig};
 use crate::onnx::export_detector;
-use std::process::Command;
+use crate::testing::{python_check, tiny_model, write_f32};
 use tch::{Kind, Tensor};
-
-fn tiny(seed: i64) -> FasterRcnn {
-    tch::manual_seed(seed);
-    let cfg = ModelConfig {
-        num_classes: 3,
-        backbone: vec![
-            BlockConfig {
-                out_channels: 8,
-                stride: 2,
-                convs: 1,
-            },
-            BlockConfig {
-                out_channels: 16,
-                stride: 2,
-                convs: 1,
-            },
-        ],
-        rpn_channels: 8,
-        roi_hidden: 32,
-        ..ModelConfig::default()
-    };
-    FasterRcnn::new(cfg, Device::Cpu).unwrap()
-}
-
-fn write_f32(path: &Path, t: &Tensor) {
-    let v = Vec::<f32>::try_from(t.to_kind(Kind::Float).flatten(0, -1)).unwrap();
-    std::fs::write(
-        path,
-        v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>(),
-    )
-    .unwrap();
-}
-
-fn python_check(model: &Path, spec: serde_json::Value, dir: &Path) -> HashMap<String, f64> {
-    let python = std::env::var_os("FRUGAL_PYTHON").expect("FRUGAL_PYTHON is not set");
-    let spec_path = dir.join(format!(
-        "{}.json",
-        model.file_stem().unwrap().to_string_lossy()
-    ));
-    std::fs::write(&spec_path, spec.to_string()).unwrap();
-    let out = Command::new(python)
-        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tools/onnx_check.py"))
-        .arg(model)
-        .arg(&spec_path)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert_eq!(v["checker"], "ok");
-    serde_json::from_value(v["max_abs_diff"].clone()).unwrap()
-}
 
 /// Every kind of exported variant (int8 QDQ, channel-pruned, block-removed, smaller
 /// input) passes the ONNX checker and runs in Python onnxruntime; the fp32 ones match
 /// tch, the int8 one stays within a few quantization steps of it.
 #[test]
 fn exported_variants_pass_the_onnx_checker_and_run_in_onnxruntime() {
-    let base = tiny(4);
+    let base = tiny_model(4, &[(8, 2, 1), (16, 2, 1)]);
     let dir = tempfile::tempdir().unwrap();
     let (h, w) = (40usize, 56usize);
     let images: Vec<Tensor> = (0..4)
@@ -158,7 +102,7 @@ fn exported_variants_pass_the_onnx_checker_and_run_in_onnxruntime() {
 
 #[test]
 fn executor_resizes_frames_to_its_input_and_scales_boxes_back() {
-    let model = tiny(9);
+    let model = tiny_model(9, &[(8, 2, 1), (16, 2, 1)]);
     let dir = tempfile::tempdir().unwrap();
     export_detector(&model, 24, 32, dir.path()).unwrap();
     let mut ort = OrtDetector::open(dir.path(), 1).unwrap();

@@ -9,33 +9,9 @@ pub use frugal_runtime::onnx::{
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::FasterRcnn;
-    use crate::config::{BlockConfig, ModelConfig};
     use crate::onnx::export_detector;
+    use crate::testing::tiny_model;
     use frugal_runtime::FrameRef;
-
-    fn tiny(seed: i64) -> FasterRcnn {
-        tch::manual_seed(seed);
-        let cfg = ModelConfig {
-            num_classes: 3,
-            backbone: vec![
-                BlockConfig {
-                    out_channels: 8,
-                    stride: 2,
-                    convs: 1,
-                },
-                BlockConfig {
-                    out_channels: 16,
-                    stride: 2,
-                    convs: 1,
-                },
-            ],
-            rpn_channels: 8,
-            roi_hidden: 32,
-            ..ModelConfig::default()
-        };
-        FasterRcnn::new(cfg, tch::Device::Cpu).unwrap()
-    }
 
     /// A deterministic frame with some structure (gradients and a bright square).
     fn frame(w: u32, h: u32, k: u32) -> Vec<u8> {
@@ -56,7 +32,7 @@ mod tests {
 
     #[test]
     fn ort_executor_matches_tch_raw_outputs_and_detections() {
-        let model = tiny(11);
+        let model = tiny_model(11, &[(8, 2, 1), (16, 2, 1)]);
         let dir = tempfile::tempdir().unwrap();
         let (w, h) = (64u32, 48u32);
         export_detector(&model, h as usize, w as usize, dir.path()).unwrap();
@@ -79,7 +55,7 @@ mod tests {
 
     #[test]
     fn bad_files_give_clear_errors() {
-        let model = tiny(5);
+        let model = tiny_model(5, &[(8, 2, 1), (16, 2, 1)]);
         let dir = tempfile::tempdir().unwrap();
         let files = export_detector(&model, 32, 32, dir.path()).unwrap();
         let msg =

@@ -430,69 +430,13 @@ pub fn export_detector_quantized(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::{BlockConfig, ModelConfig};
-    use std::process::Command;
-
-    fn tiny() -> FasterRcnn {
-        tch::manual_seed(3);
-        let cfg = ModelConfig {
-            num_classes: 3,
-            backbone: vec![
-                BlockConfig {
-                    out_channels: 8,
-                    stride: 2,
-                    convs: 1,
-                },
-                BlockConfig {
-                    out_channels: 16,
-                    stride: 2,
-                    convs: 2,
-                },
-            ],
-            rpn_channels: 8,
-            roi_hidden: 32,
-            ..ModelConfig::default()
-        };
-        FasterRcnn::new(cfg, tch::Device::Cpu).unwrap()
-    }
-
-    fn write_f32(path: &Path, t: &Tensor) {
-        let v = Vec::<f32>::try_from(t.to_kind(Kind::Float).flatten(0, -1)).unwrap();
-        std::fs::write(
-            path,
-            v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>(),
-        )
-        .unwrap();
-    }
+    use crate::testing::{python_check, tiny_model, write_f32};
 
     /// Run the Python checker and onnxruntime on one graph; returns the max abs diffs.
-    fn python_check(model: &Path, spec: serde_json::Value, dir: &Path) -> HashMap<String, f64> {
-        let python = std::env::var_os("FRUGAL_PYTHON")
-            .expect("FRUGAL_PYTHON is not set: run `cargo xtask setup`");
-        let spec_path = dir.join(format!(
-            "{}.json",
-            model.file_stem().unwrap().to_string_lossy()
-        ));
-        std::fs::write(&spec_path, spec.to_string()).unwrap();
-        let out = Command::new(python)
-            .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tools/onnx_check.py"))
-            .arg(model)
-            .arg(&spec_path)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-        assert_eq!(v["checker"], "ok");
-        serde_json::from_value(v["max_abs_diff"].clone()).unwrap()
-    }
 
     #[test]
     fn exported_graphs_pass_the_onnx_checker_and_match_tch_in_onnxruntime() {
-        let model = tiny();
+        let model = tiny_model(3, &[(8, 2, 1), (16, 2, 2)]);
         let dir = tempfile::tempdir().unwrap();
         let (h, w) = (40usize, 56usize);
         let files = export_detector(&model, h, w, dir.path()).unwrap();
