@@ -113,3 +113,20 @@ impl PolicyError {
 
 /// Result with [`PolicyError`].
 pub type Result<T, E = PolicyError> = std::result::Result<T, E>;
+
+/// Read a serde file: TOML when the name ends in `.toml`, JSON otherwise; errors name
+/// the file.
+pub(crate) fn read_toml_or_json<T: serde::de::DeserializeOwned>(
+    path: &std::path::Path,
+) -> Result<T> {
+    let text = std::fs::read_to_string(path).map_err(|e| PolicyError::io(path, e))?;
+    let parsed = if path.extension().is_some_and(|e| e == "toml") {
+        toml::from_str(&text).map_err(|e| e.to_string())
+    } else {
+        serde_json::from_str(&text).map_err(|e| e.to_string())
+    };
+    parsed.map_err(|message| PolicyError::Parse {
+        path: path.into(),
+        message,
+    })
+}

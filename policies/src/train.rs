@@ -97,18 +97,7 @@ impl Default for PolicyConfig {
 impl PolicyConfig {
     /// Read a `.toml` or JSON config.
     pub fn read(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| PolicyError::io(path, e))?;
-        let cfg: PolicyConfig = if path.extension().is_some_and(|e| e == "toml") {
-            toml::from_str(&text).map_err(|e| PolicyError::Parse {
-                path: path.into(),
-                message: e.to_string(),
-            })?
-        } else {
-            serde_json::from_str(&text).map_err(|e| PolicyError::Parse {
-                path: path.into(),
-                message: e.to_string(),
-            })?
-        };
+        let cfg: PolicyConfig = crate::error::read_toml_or_json(path)?;
         cfg.check(path)?;
         Ok(cfg)
     }

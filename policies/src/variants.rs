@@ -355,18 +355,7 @@ impl VariantsFile {
     /// Read a `.toml` or JSON variants file; relative ONNX folders are resolved against
     /// the file's folder.
     pub fn read(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| PolicyError::io(path, e))?;
-        let mut file: VariantsFile = if path.extension().is_some_and(|e| e == "toml") {
-            toml::from_str(&text).map_err(|e| PolicyError::Parse {
-                path: path.into(),
-                message: e.to_string(),
-            })?
-        } else {
-            serde_json::from_str(&text).map_err(|e| PolicyError::Parse {
-                path: path.into(),
-                message: e.to_string(),
-            })?
-        };
+        let mut file: VariantsFile = crate::error::read_toml_or_json(path)?;
         let parent = match path.parent() {
             Some(p) if !p.as_os_str().is_empty() => p,
             _ => Path::new("."),
