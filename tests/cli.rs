@@ -1,5 +1,24 @@
 //! End-to-end tests of the `frugal` CLI on tiny configurations, run in process through
 //! [`frugal::run`]. One module per pipeline stage, in `tests/cli/`.
+use std::path::Path;
+
+/// Run the CLI in process; the error comes back as its one-line `{:#}` message.
+pub(crate) fn frugal(args: &[&str]) -> Result<(), String> {
+    frugal::run(std::iter::once("frugal").chain(args.iter().copied())).map_err(|e| format!("{e:#}"))
+}
+
+/// A temporary path as an argument.
+pub(crate) fn p(path: &Path) -> &str {
+    path.to_str().expect("temp paths are UTF-8")
+}
+
+/// A JSON file the CLI wrote.
+pub(crate) fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_slice(
+        &std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())),
+    )
+    .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
 #[path = "cli/data.rs"]
 mod data;
 #[path = "cli/features.rs"]

@@ -1,18 +1,7 @@
 //! `frugal data generate|summary|show|import|export` and `frugal run` (data stage) on
 //! the tiny profile.
+use super::{frugal, json, p};
 use std::path::{Path, PathBuf};
-
-fn frugal(args: &[&str]) -> Result<(), String> {
-    frugal::run(std::iter::once("frugal").chain(args.iter().copied())).map_err(|e| format!("{e:#}"))
-}
-
-fn p(path: &Path) -> &str {
-    path.to_str().expect("temp paths are UTF-8")
-}
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).expect("read")).expect("json")
-}
 
 fn count(v: &serde_json::Value, key: &str) -> usize {
     v[key].as_array().map_or(0, Vec::len)

@@ -1,13 +1,5 @@
 //! `frugal features train|eval|proposals` on the tiny data profile.
-use std::path::Path;
-
-fn frugal(args: &[&str]) -> Result<(), String> {
-    frugal::run(std::iter::once("frugal").chain(args.iter().copied())).map_err(|e| format!("{e:#}"))
-}
-
-fn p(path: &Path) -> &str {
-    path.to_str().expect("temp paths are UTF-8")
-}
+use super::{frugal, p};
 
 #[test]
 fn train_eval_and_proposal_recall_on_the_tiny_profile() {

@@ -1,14 +1,7 @@
 //! `frugal fly`: closed-loop flights through the shipped easy maze with ground-truth
 //! perception at a small camera size, and its clear failures.
+use super::{frugal, p};
 use std::path::{Path, PathBuf};
-
-fn frugal(args: &[&str]) -> Result<(), String> {
-    frugal::run(std::iter::once("frugal").chain(args.iter().copied())).map_err(|e| format!("{e:#}"))
-}
-
-fn p(path: &Path) -> &str {
-    path.to_str().expect("temp paths are UTF-8")
-}
 
 fn maze(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

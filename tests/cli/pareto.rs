@@ -1,20 +1,6 @@
 //! `frugal compress` and `frugal pareto` on a tiny generated dataset with a tiny model.
+use super::{frugal, json, p};
 use std::path::Path;
-
-fn frugal(args: &[&str]) -> Result<(), String> {
-    frugal::run(std::iter::once("frugal").chain(args.iter().copied())).map_err(|e| format!("{e:#}"))
-}
-
-fn p(path: &Path) -> &str {
-    path.to_str().expect("temp paths are UTF-8")
-}
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_slice(
-        &std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())),
-    )
-    .unwrap()
-}
 
 const TINY: &str = r#"
 [model]

@@ -1,14 +1,6 @@
 //! `frugal policy record|train|eval` and `frugal bundle write|verify|inspect` on a tiny
 //! generated dataset with synthetic (ground-truth-derived) detector variants.
-use std::path::Path;
-
-fn frugal(args: &[&str]) -> Result<(), String> {
-    frugal::run(std::iter::once("frugal").chain(args.iter().copied())).map_err(|e| format!("{e:#}"))
-}
-
-fn p(path: &Path) -> &str {
-    path.to_str().expect("temp paths are UTF-8")
-}
+use super::{frugal, p};
 
 const VARIANTS: &str = r#"
 [[variants]]

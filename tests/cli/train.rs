@@ -1,10 +1,5 @@
 //! `frugal train` and `frugal eval` on a tiny generated dataset with a tiny model.
-use std::path::Path;
-
-/// Run the CLI in process; the error comes back as its one-line `{:#}` message.
-fn frugal(args: &[&str]) -> Result<(), String> {
-    frugal::run(std::iter::once("frugal").chain(args.iter().copied())).map_err(|e| format!("{e:#}"))
-}
+use super::{frugal, p};
 
 const TINY: &str = r#"
 [model]
@@ -30,10 +25,6 @@ warmup_steps = 1
 train_frames = 6
 val_frames = 4
 "#;
-
-fn p(path: &Path) -> &str {
-    path.to_str().expect("temp paths are UTF-8")
-}
 
 #[test]
 fn train_resume_and_eval_on_a_tiny_dataset() {
