@@ -7,6 +7,20 @@ pub(crate) fn frugal(args: &[&str]) -> Result<(), String> {
     frugal::run(std::iter::once("frugal").chain(args.iter().copied())).map_err(|e| format!("{e:#}"))
 }
 
+/// Generate the tiny dataset profile into `dir`.
+pub(crate) fn tiny_dataset(dir: &Path) {
+    frugal(&[
+        "data",
+        "generate",
+        "--profile",
+        "tiny",
+        "--out",
+        p(dir),
+        "--quiet",
+    ])
+    .unwrap_or_else(|e| panic!("generating the tiny dataset: {e}"));
+}
+
 /// A temporary path as an argument.
 pub(crate) fn p(path: &Path) -> &str {
     path.to_str().expect("temp paths are UTF-8")

@@ -1,20 +1,11 @@
 //! `frugal features train|eval|proposals` on the tiny data profile.
-use super::{frugal, p};
+use super::{frugal, p, tiny_dataset};
 
 #[test]
 fn train_eval_and_proposal_recall_on_the_tiny_profile() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let data = tmp.path().join("data");
-    frugal(&[
-        "data",
-        "generate",
-        "--profile",
-        "tiny",
-        "--out",
-        p(&data),
-        "--quiet",
-    ])
-    .expect("generate");
+    tiny_dataset(&data);
     let out = tmp.path().join("hog");
     frugal(&[
         "features",

@@ -1,5 +1,5 @@
 //! `frugal compress` and `frugal pareto` on a tiny generated dataset with a tiny model.
-use super::{frugal, json, p};
+use super::{frugal, json, p, tiny_dataset};
 use std::path::Path;
 
 const TINY: &str = r#"
@@ -75,16 +75,7 @@ fn compress_then_pareto_on_a_tiny_model() {
     std::fs::write(&cfg, TINY).unwrap();
     let grid = tmp.path().join("grid.toml");
     std::fs::write(&grid, GRID).unwrap();
-    frugal(&[
-        "data",
-        "generate",
-        "--profile",
-        "tiny",
-        "--out",
-        p(&data),
-        "--quiet",
-    ])
-    .unwrap();
+    tiny_dataset(&data);
     frugal(&[
         "train",
         "--data",

@@ -1,5 +1,5 @@
 //! `frugal train` and `frugal eval` on a tiny generated dataset with a tiny model.
-use super::{frugal, p};
+use super::{frugal, p, tiny_dataset};
 
 const TINY: &str = r#"
 [model]
@@ -33,16 +33,7 @@ fn train_resume_and_eval_on_a_tiny_dataset() {
     let out = tmp.path().join("model");
     let cfg = tmp.path().join("tiny.toml");
     std::fs::write(&cfg, TINY).unwrap();
-    frugal(&[
-        "data",
-        "generate",
-        "--profile",
-        "tiny",
-        "--out",
-        p(&data),
-        "--quiet",
-    ])
-    .unwrap();
+    tiny_dataset(&data);
 
     // an interrupted run (one epoch), then --resume finishes it
     frugal(&[
