@@ -30,7 +30,9 @@ use frugal_data::{Clutter, Light, Split};
 use frugal_models::metrics::{ImageResult, Interpolation, Truth, evaluate, image_counts};
 use frugal_runtime::bundle::{BUCKET_COUNT, Thresholds};
 use frugal_runtime::track::{Pyramid, Tracker, TrackerParams, rgb_to_gray};
-use frugal_runtime::{BBox, Bundle, Controller, Decision, Detection, Observation, TrackStatus};
+use frugal_runtime::{
+    BBox, Bundle, ClassId, Controller, Decision, Detection, Observation, TrackStatus,
+};
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -818,6 +820,133 @@ pub fn scores(log: &ReplayLog, videos: &[&VideoLog], runs: &Runs, cfg: &EvalConf
             }
         }
         out.extend(group);
+    }
+    out
+}
+
+/// Precision, recall and compute time of one strategy on one sign class (or on every
+/// class: `class == None`), the rows of the paper's KUL table.
+///
+/// Counts are the class's share of the overall matching (class-aware, IoU ≥
+/// [`EvalConfig::eval_iou`]): true positives and false negatives go to the sign's
+/// class, false positives to the detection's class, so the per-class counts sum to
+/// the overall ones. Time is the compute time charged to the frames on which a sign
+/// of the class is in the ground truth (the `all` row: every frame).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ClassScore {
+    /// Strategy name.
+    pub strategy: String,
+    /// Class id, `None` for the all-classes row.
+    pub class: Option<ClassId>,
+    /// Class name (`all` for the all-classes row).
+    pub name: String,
+    /// Frames the time is averaged over (frames showing the class; all: every frame).
+    pub frames: usize,
+    /// True positives.
+    pub tp: usize,
+    /// False positives.
+    pub fp: usize,
+    /// False negatives (signs missed).
+    pub fn_: usize,
+    /// `tp / (tp + fp)`, `None` without detections of the class.
+    pub precision: Option<f64>,
+    /// `tp / (tp + fn)`, `None` without signs of the class.
+    pub recall: Option<f64>,
+    /// Mean compute time of those frames, ms.
+    pub ms_per_frame: f64,
+    /// Standard deviation of the compute time over those frames, ms.
+    pub ms_std: f64,
+}
+
+/// Counts `(tp, fp, fn)` of class `class` in one image (the class's share of
+/// [`image_counts`]: matching is class-aware, so the shares sum to the whole).
+pub fn class_counts(im: &ImageResult, class: ClassId, iou: f32) -> (usize, usize, usize) {
+    let only = ImageResult {
+        detections: im
+            .detections
+            .iter()
+            .filter(|d| d.class == class)
+            .copied()
+            .collect(),
+        truth: im
+            .truth
+            .iter()
+            .filter(|t| t.class == class)
+            .copied()
+            .collect(),
+    };
+    image_counts(&only, iou, f32::NEG_INFINITY)
+}
+
+fn mean_std(v: &[f64]) -> (f64, f64) {
+    if v.is_empty() {
+        return (0.0, 0.0);
+    }
+    let n = v.len() as f64;
+    let m = v.iter().sum::<f64>() / n;
+    let var = v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / n;
+    (m, var.sqrt())
+}
+
+fn ratio(a: usize, b: usize) -> Option<f64> {
+    (a + b > 0).then(|| a as f64 / (a + b) as f64)
+}
+
+/// Per-class scores of every strategy in `runs` (classes `0..log.classes`, then the
+/// all-classes row), named by `names` (`class <id>` where a name is missing).
+pub fn class_scores(
+    log: &ReplayLog,
+    runs: &Runs,
+    cfg: &EvalConfig,
+    names: &[String],
+) -> Vec<ClassScore> {
+    let classes = log.classes.max(1);
+    let mut out = Vec::new();
+    for (strategy, rs) in &runs.runs {
+        let mut counts = vec![(0usize, 0usize, 0usize); classes];
+        let mut times: Vec<Vec<f64>> = vec![Vec::new(); classes];
+        let mut all_times = Vec::new();
+        for r in rs {
+            for (im, t) in r.images.iter().zip(&r.frames) {
+                all_times.push(t.time_ms);
+                for (c, (count, time)) in counts.iter_mut().zip(&mut times).enumerate() {
+                    let (tp, fp, fneg) = class_counts(im, c as ClassId, cfg.eval_iou);
+                    count.0 += tp;
+                    count.1 += fp;
+                    count.2 += fneg;
+                    if im.truth.iter().any(|x| usize::from(x.class) == c) {
+                        time.push(t.time_ms);
+                    }
+                }
+            }
+        }
+        let row = |class: Option<ClassId>, name: String, c: (usize, usize, usize), t: &[f64]| {
+            let (ms, sd) = mean_std(t);
+            ClassScore {
+                strategy: strategy.name().into(),
+                class,
+                name,
+                frames: t.len(),
+                tp: c.0,
+                fp: c.1,
+                fn_: c.2,
+                precision: ratio(c.0, c.1),
+                recall: ratio(c.0, c.2),
+                ms_per_frame: ms,
+                ms_std: sd,
+            }
+        };
+        for (c, (count, time)) in counts.iter().zip(&times).enumerate() {
+            let name = names
+                .get(c)
+                .cloned()
+                .unwrap_or_else(|| format!("class {c}"));
+            out.push(row(Some(c as ClassId), name, *count, time));
+        }
+        let total = counts
+            .iter()
+            .fold((0, 0, 0), |a, c| (a.0 + c.0, a.1 + c.1, a.2 + c.2));
+        out.push(row(None, "all".into(), total, &all_times));
     }
     out
 }

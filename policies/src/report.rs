@@ -1,7 +1,9 @@
 //! What `policy train` and `policy eval` write: JSON, CSV and the figures.
 
 use crate::error::{PolicyError, Result};
-use crate::eval::{EvalConfig, EvalReport, Runs, Score, Strategy, run_all, scores};
+use crate::eval::{
+    ClassScore, EvalConfig, EvalReport, Runs, Score, Strategy, class_scores, run_all, scores,
+};
 use crate::plot::{ClipSeries, plot_bars, plot_clip, plot_states, plot_sweep};
 use crate::replay::{Frames, ReplayLog, VideoLog};
 use crate::sweep::{SweepPoint, sweep};
@@ -255,4 +257,120 @@ pub fn evaluate_and_write(
         write_json(&out.join("states.json"), &r.frames)?;
     }
     Ok((report, runs))
+}
+
+fn per_class_csv(rows: &[ClassScore]) -> String {
+    let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:.4}"));
+    let mut s =
+        String::from("strategy,class,name,frames,tp,fp,fn,precision,recall,ms_per_frame,ms_std\n");
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{},{},{},{},{},{:.4},{:.4}",
+            r.strategy,
+            r.class.map_or("all".to_string(), |c| c.to_string()),
+            r.name,
+            r.frames,
+            r.tp,
+            r.fp,
+            r.fn_,
+            opt(r.precision),
+            opt(r.recall),
+            r.ms_per_frame,
+            r.ms_std
+        );
+    }
+    s
+}
+
+/// The paper's KUL table as Markdown: per class, precision `P` (and, beyond the paper,
+/// recall `R`) and compute time per frame `E` (mean ± standard deviation over the
+/// frames showing the class) of `base`
+/// ("Average") and `other` ("Good Enough"), the speed-up `E_base / E_other`, the time
+/// saved `1 − E_other / E_base` and the relative precision loss
+/// `(P_base − P_other) / P_base`, then the all-classes row.
+pub fn kul_table(rows: &[ClassScore], base: Strategy, other: Strategy) -> String {
+    let f = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.3}"));
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "| class | frames | P {b} | R {b} | E {b} [ms] | P {o} | R {o} | E {o} [ms] | speed-up | time saved | precision loss |",
+        b = base.name(),
+        o = other.name()
+    );
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|\n");
+    let of = |st: Strategy| rows.iter().filter(move |r| r.strategy == st.name());
+    for a in of(base) {
+        let Some(b) = of(other).find(|r| r.class == a.class) else {
+            continue;
+        };
+        let speedup = (b.ms_per_frame > 0.0).then(|| a.ms_per_frame / b.ms_per_frame);
+        let saved = (a.ms_per_frame > 0.0).then(|| 100.0 * (1.0 - b.ms_per_frame / a.ms_per_frame));
+        let loss = match (a.precision, b.precision) {
+            (Some(pa), Some(pb)) if pa > 0.0 => format!("{:.1} %", 100.0 * (pa - pb) / pa),
+            _ => "–".into(),
+        };
+        let name = if a.class.is_none() {
+            format!("**{}**", a.name)
+        } else {
+            a.name.clone()
+        };
+        let _ = writeln!(
+            s,
+            "| {name} | {} | {} | {} | {:.1} ± {:.1} | {} | {} | {:.1} ± {:.1} | {} | {} | {loss} |",
+            a.frames,
+            f(a.precision),
+            f(a.recall),
+            a.ms_per_frame,
+            a.ms_std,
+            f(b.precision),
+            f(b.recall),
+            b.ms_per_frame,
+            b.ms_std,
+            speedup.map_or("–".into(), |v| format!("{v:.2}×")),
+            saved.map_or("–".into(), |v| format!("{v:.1} %")),
+        );
+    }
+    s
+}
+
+/// Per-class scores of every strategy in `runs`, written as `per_class.json`,
+/// `per_class.csv` and `kul.md` (the KUL table of static vs MDP and of static vs
+/// MDP + tracker, where those strategies were run) into `out`. `names` are the class
+/// names in id order.
+pub fn write_per_class(
+    log: &ReplayLog,
+    runs: &Runs,
+    cfg: &EvalConfig,
+    names: &[String],
+    out: &Path,
+) -> Result<Vec<ClassScore>> {
+    let rows = class_scores(log, runs, cfg, names);
+    write_json(&out.join("per_class.json"), &rows)?;
+    write_text(&out.join("per_class.csv"), &per_class_csv(&rows))?;
+    let static_name = log
+        .variants
+        .get(runs.static_variant)
+        .map_or("?", |v| v.name.as_str());
+    write_text(&out.join("kul.md"), &kul_tables(runs, &rows, static_name))?;
+    Ok(rows)
+}
+
+/// The KUL tables of the strategies `runs` holds: static vs MDP, static vs MDP + tracker
+/// (`static_name`: the static strategy's variant).
+pub fn kul_tables(runs: &Runs, rows: &[ClassScore], static_name: &str) -> String {
+    let has = |s: Strategy| runs.runs.iter().any(|(x, _)| *x == s);
+    let mut s = String::new();
+    for other in [Strategy::Mdp, Strategy::MdpTracker] {
+        if has(Strategy::Static) && has(other) {
+            let _ = writeln!(
+                s,
+                "static = {static_name} (\"Average\") vs {} (\"Good Enough\"):\n",
+                other.name()
+            );
+            s.push_str(&kul_table(rows, Strategy::Static, other));
+            s.push('\n');
+        }
+    }
+    s
 }

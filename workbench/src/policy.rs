@@ -11,7 +11,9 @@ use clap::{Args, Subcommand};
 use frugal_data::{Dataset, Split};
 use frugal_policies::eval::EvalConfig;
 use frugal_policies::replay::{DEFAULT_MAX_DETECTIONS, DatasetFrames, record, time_detector};
-use frugal_policies::report::{evaluate_and_write, policy_table, score_table, train_and_write};
+use frugal_policies::report::{
+    evaluate_and_write, kul_tables, policy_table, score_table, train_and_write, write_per_class,
+};
 use frugal_policies::variants::{FrameDetector, RuntimeDetector, VariantSource, VariantsFile};
 use frugal_policies::{PolicyConfig, ReplayLog, TrainedPolicy, VariantSet};
 use std::collections::HashMap;
@@ -40,7 +42,8 @@ enum PolicyCommand {
     /// cross-checked by policy iteration), sweep α, write policy.json and the sweep plot.
     Train(TrainArgs),
     /// Replay the paper's five strategies and the oracle on the log's test videos
-    /// (the KLT tracker runs on the real frames), write eval.json/csv and the plots.
+    /// (the KLT tracker runs on the real frames), write eval.json/csv and the plots,
+    /// and per sign class per_class.json/csv and the paper's KUL table (kul.md).
     Eval(EvalArgs),
 }
 
@@ -290,7 +293,9 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
             let root = a.data.clone().unwrap_or_else(|| log.dataset.clone());
             let ds = Dataset::load(&root)?;
             let frames = DatasetFrames::new(&ds);
-            let (report, _) = evaluate_and_write(&log, &policy, &frames, &cfg, &a.out, a.clip)?;
+            let (report, runs) = evaluate_and_write(&log, &policy, &frames, &cfg, &a.out, a.clip)?;
+            let names: Vec<String> = ds.classes.iter().map(|c| c.name.clone()).collect();
+            let per_class = write_per_class(&log, &runs, &cfg, &names, &a.out)?;
             println!(
                 "static variant: {}; tracker medians: pyramid {:.3} ms, track {:.3} ms/object, init {:.3} ms/object",
                 report.static_variant,
@@ -299,6 +304,10 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
                 report.tracker_cost.init_ms
             );
             print!("{}", score_table(&report.scores));
+            println!(
+                "\nper class (precision at the family's T_c, ms per frame showing the class):"
+            );
+            print!("{}", kul_tables(&runs, &per_class, &report.static_variant));
             println!("wrote {}", a.out.display());
             Ok(())
         }

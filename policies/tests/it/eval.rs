@@ -100,3 +100,72 @@ fn eval_writes_tables_and_figures() {
     let csv = std::fs::read_to_string(dir.path().join("eval.csv")).unwrap();
     assert_eq!(csv.lines().count(), 1 + 5 * 6);
 }
+
+#[test]
+fn per_class_counts_sum_to_the_overall_counts() {
+    use frugal_policies::eval::{ClassScore, class_scores};
+    use frugal_policies::report::write_per_class;
+    let (mut log, frames) = log2();
+    // Two classes: the signs of two test videos become class 1 (their detections too,
+    // except on every fifth frame, where a wrong class makes a false alarm and a miss).
+    log.classes = 2;
+    for v in log.videos.iter_mut().filter(|v| v.id == 11 || v.id == 13) {
+        for f in &mut v.frames {
+            for t in &mut f.truth {
+                t.class = 1;
+            }
+            if f.index % 5 != 0 {
+                for d in f.detections.iter_mut().flatten() {
+                    d.class = 1;
+                }
+            }
+        }
+    }
+    let policy = train(&log, &PolicyConfig::default()).unwrap();
+    let cfg = EvalConfig::default();
+    let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
+    let runs = run_all(&log, &policy, &videos, Some(&frames), &cfg, &Strategy::ALL).unwrap();
+    let sc = scores(&log, &videos, &runs, &cfg);
+    let names = ["zero".to_string(), "one".to_string()];
+    let rows = class_scores(&log, &runs, &cfg, &names);
+    assert_eq!(rows.len(), Strategy::ALL.len() * 3);
+    for s in Strategy::ALL {
+        let mine: Vec<_> = rows.iter().filter(|r| r.strategy == s.name()).collect();
+        let all = mine.iter().find(|r| r.class.is_none()).unwrap();
+        let classes: Vec<_> = mine.iter().filter(|r| r.class.is_some()).collect();
+        assert_eq!(classes.len(), 2);
+        assert_eq!(classes[1].name, "one");
+        // Both classes have signs and (for detecting strategies) false alarms.
+        assert!(classes.iter().all(|c| c.tp + c.fn_ > 0), "{classes:?}");
+        let sum = |get: fn(&ClassScore) -> usize| classes.iter().map(|c| get(c)).sum::<usize>();
+        assert_eq!(sum(|c| c.tp), all.tp, "{s:?}");
+        assert_eq!(sum(|c| c.fp), all.fp, "{s:?}");
+        assert_eq!(sum(|c| c.fn_), all.fn_, "{s:?}");
+        // The all row is the overall score of the strategy.
+        let overall = sc
+            .iter()
+            .find(|x| x.scenario == "all" && x.strategy == s.name())
+            .unwrap();
+        assert!((all.precision.unwrap() - overall.precision).abs() < 1e-12);
+        assert!((all.recall.unwrap() - overall.recall).abs() < 1e-12);
+        assert!((all.ms_per_frame - overall.ms_per_frame).abs() < 1e-9);
+        assert_eq!(all.frames, overall.frames);
+        // Every test frame shows one sign: the class frames partition the frames.
+        assert_eq!(classes[0].frames + classes[1].frames, all.frames);
+    }
+    // The mislabelled frames are false alarms of class 0 in the class-1 videos.
+    let st = rows
+        .iter()
+        .find(|r| r.strategy == "static" && r.class == Some(0))
+        .unwrap();
+    assert!(st.fp > 0, "{st:?}");
+    let dir = tempfile::tempdir().unwrap();
+    write_per_class(&log, &runs, &cfg, &names, dir.path()).unwrap();
+    let csv = std::fs::read_to_string(dir.path().join("per_class.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + rows.len());
+    let kul = std::fs::read_to_string(dir.path().join("kul.md")).unwrap();
+    assert!(
+        kul.contains("| one |") && kul.contains("| **all** |"),
+        "{kul}"
+    );
+}
