@@ -1,5 +1,5 @@
 //! `frugal features train|eval|proposals` on the tiny data profile.
-use super::{frugal, p, tiny_dataset};
+use super::{frugal, json, p, tiny_dataset};
 
 #[test]
 fn train_eval_and_proposal_recall_on_the_tiny_profile() {
@@ -116,4 +116,87 @@ fn bad_inputs_are_one_line_errors() {
     ])
     .unwrap_err();
     assert!(err.contains("missing"), "{err}");
+}
+
+#[test]
+fn grid_front_holds_no_dominated_tuple() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let data = tmp.path().join("data");
+    tiny_dataset(&data);
+    let out = tmp.path().join("grid");
+    frugal(&[
+        "features",
+        "grid",
+        "--data",
+        p(&data),
+        "--out",
+        p(&out),
+        "--split",
+        "val",
+        "--stride",
+        "1",
+        "--train-stride",
+        "1",
+        "--proposals",
+        "20,100",
+        "--blocks",
+        "1,2",
+        "--cells",
+        "8",
+        "--bins",
+        "6,9",
+        "--quiet",
+    ])
+    .expect("grid");
+    for f in [
+        "model.json",
+        "grid.json",
+        "grid.csv",
+        "grid.png",
+        "grid.svg",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let v = json(&out.join("grid.json"));
+    let points = v["points"].as_array().expect("points");
+    assert_eq!(points.len(), 2 * 2 * 2);
+    let at = |i: usize| {
+        (
+            points[i]["f1"].as_f64().unwrap(),
+            points[i]["ms_per_frame"].as_f64().unwrap(),
+        )
+    };
+    let front: Vec<usize> = v["front"]
+        .as_array()
+        .expect("front")
+        .iter()
+        .map(|i| i.as_u64().unwrap() as usize)
+        .collect();
+    assert!(!front.is_empty());
+    for i in 0..points.len() {
+        let (f1, ms) = at(i);
+        assert!(ms > 0.0 && (0.0..=1.0).contains(&f1));
+        let dominated = (0..points.len()).any(|j| {
+            let (g, t) = at(j);
+            g >= f1 && t <= ms && (g > f1 || t < ms)
+        });
+        // On the front exactly when nothing dominates it.
+        assert_eq!(front.contains(&i), !dominated, "tuple {i}: {:?}", points[i]);
+        assert_eq!(points[i]["on_front"].as_bool(), Some(!dominated));
+    }
+    let csv = std::fs::read_to_string(out.join("grid.csv")).expect("csv");
+    assert_eq!(csv.lines().count(), 1 + points.len());
+    // The train split is refused: the grid is scored on held-out frames only.
+    let err = frugal(&[
+        "features",
+        "grid",
+        "--data",
+        p(&data),
+        "--out",
+        p(&out),
+        "--split",
+        "train",
+    ])
+    .unwrap_err();
+    assert!(err.contains("held-out"), "{err}");
 }

@@ -1,11 +1,12 @@
 //! `frugal features`: the feature-based detector family (EdgeBoxes proposals, HoG,
 //! one-vs-rest linear SVMs) — train SVM sets for parameter tuples, score variants
-//! per class, measure proposal recall.
+//! per class, measure proposal recall, and map a parameter grid's accuracy against
+//! its time per frame with the Pareto front.
 use anyhow::{Context, bail};
 use clap::{Args, Subcommand};
 use frugal_data::{Dataset, Split};
 use frugal_features::data::{class_names, load_frames};
-use frugal_features::eval::{EvalReport, evaluate, proposal_recall};
+use frugal_features::eval::{EvalReport, evaluate, evaluate_many, proposal_recall};
 use frugal_features::{FeatureModel, HogParams, Progress, TrainConfig, train};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
@@ -27,6 +28,10 @@ enum FeaturesCommand {
     Eval(EvalArgs),
     /// EdgeBoxes proposal recall for several proposal counts on a split.
     Proposals(ProposalArgs),
+    /// Train SVM sets for a grid of tuples on the train split, score every tuple on a
+    /// held-out split (precision, recall, F1 at the margin threshold; time per frame)
+    /// and write OUT/grid.json, grid.csv and the Pareto plot grid.png|svg.
+    Grid(GridArgs),
 }
 
 /// Frame selection shared by the subcommands.
@@ -103,6 +108,84 @@ struct ProposalArgs {
     iou: f32,
 }
 
+#[derive(Args, Debug)]
+struct GridArgs {
+    /// Dataset folder, and which held-out frames to score (`--stride`, `--limit`).
+    #[command(flatten)]
+    frames: FrameArgs,
+    /// Output folder.
+    #[arg(long)]
+    out: PathBuf,
+    /// Held-out split to score: val or test.
+    #[arg(long, default_value = "val")]
+    split: String,
+    /// Proposal counts of the grid.
+    #[arg(long, value_delimiter = ',', default_value = "200,500,1000,2000")]
+    proposals: Vec<u32>,
+    /// Block sizes (cells) of the grid.
+    #[arg(long, value_delimiter = ',', default_value = "1,2,3")]
+    blocks: Vec<u8>,
+    /// Cell sizes (pixels) of the grid.
+    #[arg(long, value_delimiter = ',', default_value = "6,8")]
+    cells: Vec<u8>,
+    /// Orientation bins of the grid.
+    #[arg(long, value_delimiter = ',', default_value = "6,9,12")]
+    bins: Vec<u8>,
+    /// Use every n-th training frame.
+    #[arg(long, default_value_t = 6)]
+    train_stride: usize,
+    /// At most this many training frames.
+    #[arg(long)]
+    train_limit: Option<usize>,
+    /// Reuse this trained model (file or folder) instead of training; it must hold
+    /// every HoG configuration of the grid.
+    #[arg(long)]
+    model: Option<PathBuf>,
+    /// Hard-negative mining rounds.
+    #[arg(long, default_value_t = 1)]
+    mining_rounds: usize,
+    /// Detections at or above this margin count (default: the model's c_ge).
+    #[arg(long)]
+    threshold: Option<f32>,
+    /// No progress bars.
+    #[arg(long)]
+    quiet: bool,
+}
+
+/// One tuple of the grid, as written to grid.json / grid.csv.
+#[derive(Debug, serde::Serialize)]
+struct GridPoint {
+    params: String,
+    proposals: u32,
+    block: u8,
+    cell: u8,
+    bins: u8,
+    tp: usize,
+    fp: usize,
+    missed: usize,
+    precision: f64,
+    recall: f64,
+    f1: f64,
+    ms_per_frame: f64,
+    on_front: bool,
+}
+
+/// What `frugal features grid` writes to grid.json.
+#[derive(Debug, serde::Serialize)]
+struct GridReport {
+    split: String,
+    frames: usize,
+    train_frames: usize,
+    train_seconds: f64,
+    eval_seconds: f64,
+    score_threshold: f32,
+    iou: f32,
+    rayon_threads: String,
+    points: Vec<GridPoint>,
+    /// Indices of `points` on the Pareto front (F1 up, time down), fastest first.
+    front: Vec<usize>,
+}
+
 fn parse_split(s: &str) -> anyhow::Result<Split> {
     Ok(match s {
         "train" => Split::Train,
@@ -151,32 +234,36 @@ pub fn run(args: FeaturesArgs) -> anyhow::Result<()> {
         FeaturesCommand::Train(a) => train_cmd(a),
         FeaturesCommand::Eval(a) => eval_cmd(a),
         FeaturesCommand::Proposals(a) => proposals_cmd(a),
+        FeaturesCommand::Grid(a) => grid_cmd(a),
     }
 }
 
-fn train_cmd(a: TrainArgs) -> anyhow::Result<()> {
-    let params = if a.grid {
-        HogParams::default_grid()
-    } else if a.params.is_empty() {
-        vec![HogParams::BASELINE]
-    } else {
-        parse_params(&a.params)?
-    };
-    let (ds, frames) = load(&a.frames, Split::Train, 6)?;
-    let cfg = TrainConfig {
-        mining_rounds: a.mining_rounds,
-        ..TrainConfig::default()
-    };
-    let bar = if a.quiet {
+fn bar(quiet: bool, len: usize, msg: &'static str) -> ProgressBar {
+    let bar = if quiet {
         ProgressBar::hidden()
     } else {
-        ProgressBar::new(frames.len() as u64)
+        ProgressBar::new(len as u64)
     };
     if let Ok(style) = ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len}, eta {eta}") {
         bar.set_style(style.progress_chars("=> "));
     }
-    bar.set_message("proposals");
-    let t = Instant::now();
+    bar.set_message(msg);
+    bar
+}
+
+/// Train SVM sets for `params` on `frames`, with a progress bar unless `quiet`.
+fn train_model(
+    ds: &Dataset,
+    frames: &[frugal_features::LabeledFrame],
+    params: &[HogParams],
+    mining_rounds: usize,
+    quiet: bool,
+) -> anyhow::Result<FeatureModel> {
+    let cfg = TrainConfig {
+        mining_rounds,
+        ..TrainConfig::default()
+    };
+    let bar = bar(quiet, frames.len(), "proposals");
     let progress = |p: Progress| match p {
         Progress::Proposals { done, .. } => bar.set_position(done as u64),
         Progress::Hog { done, total } => {
@@ -188,8 +275,22 @@ fn train_cmd(a: TrainArgs) -> anyhow::Result<()> {
         }
         _ => {}
     };
-    let model = train(&frames, &class_names(&ds), &params, &cfg, &progress)?;
+    let model = train(frames, &class_names(ds), params, &cfg, &progress)?;
     bar.finish_and_clear();
+    Ok(model)
+}
+
+fn train_cmd(a: TrainArgs) -> anyhow::Result<()> {
+    let params = if a.grid {
+        HogParams::default_grid()
+    } else if a.params.is_empty() {
+        vec![HogParams::BASELINE]
+    } else {
+        parse_params(&a.params)?
+    };
+    let (ds, frames) = load(&a.frames, Split::Train, 6)?;
+    let t = Instant::now();
+    let model = train_model(&ds, &frames, &params, a.mining_rounds, a.quiet)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let path = a.out.join("model.json");
     model.save(&path)?;
@@ -275,5 +376,169 @@ fn proposals_cmd(a: ProposalArgs) -> anyhow::Result<()> {
     for (n, r) in recall {
         println!("| {n} | {r:.3} |");
     }
+    Ok(())
+}
+
+fn grid_cmd(a: GridArgs) -> anyhow::Result<()> {
+    let split = parse_split(&a.split)?;
+    if split == Split::Train {
+        bail!("score the grid on a held-out split (val or test), not on train");
+    }
+    let params = HogParams::grid(&a.proposals, &a.blocks, &a.cells, &a.bins);
+    if params.is_empty() {
+        bail!(
+            "the grid is empty: give at least one value for each of --proposals, --blocks, --cells, --bins"
+        );
+    }
+    let (ds, frames) = load(&a.frames, split, 12)?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let (model, train_frames, train_seconds) = match &a.model {
+        Some(m) => (FeatureModel::load(&model_path(m))?, 0, 0.0),
+        None => {
+            let train = load_frames(
+                &ds,
+                Split::Train,
+                a.train_stride,
+                a.train_limit.unwrap_or(usize::MAX),
+            )?;
+            if train.is_empty() {
+                bail!("{}: the train split has no frames", a.frames.data.display());
+            }
+            let t = Instant::now();
+            let model = train_model(&ds, &train, &params, a.mining_rounds, a.quiet)?;
+            let secs = t.elapsed().as_secs_f64();
+            model.save(&a.out.join("model.json"))?;
+            println!(
+                "trained {} HoG configuration(s) on {} frames in {secs:.1} s",
+                model.hogs.len(),
+                train.len()
+            );
+            (model, train.len(), secs)
+        }
+    };
+    let threshold = a.threshold.unwrap_or(model.thresholds.ge);
+    let iou = 0.5;
+    let bar = bar(a.quiet, frames.len(), "scoring the grid");
+    let t = Instant::now();
+    let reports = evaluate_many(&model, &params, &frames, threshold, iou, &|done, _| {
+        bar.set_position(done as u64)
+    })?;
+    let eval_seconds = t.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    let mut points: Vec<GridPoint> = params
+        .iter()
+        .zip(&reports)
+        .map(|(p, r)| {
+            let c = r.total();
+            GridPoint {
+                params: p.to_string(),
+                proposals: p.proposals,
+                block: p.block,
+                cell: p.cell,
+                bins: p.bins,
+                tp: c.tp,
+                fp: c.fp,
+                missed: c.missed,
+                precision: c.precision().unwrap_or(0.0),
+                recall: c.recall().unwrap_or(0.0),
+                f1: c.f1().unwrap_or(0.0),
+                ms_per_frame: r.mean_ms,
+                on_front: false,
+            }
+        })
+        .collect();
+    let plane: Vec<frugal_pareto::Point> = points
+        .iter()
+        .map(|g| frugal_pareto::Point {
+            accuracy: g.f1,
+            latency: g.ms_per_frame,
+        })
+        .collect();
+    let front = frugal_pareto::front(&plane);
+    for &i in &front {
+        points[i].on_front = true;
+    }
+    let threads = std::env::var("RAYON_NUM_THREADS").unwrap_or_else(|_| "all cores".into());
+    let labelled: Vec<(String, frugal_pareto::Point)> = points
+        .iter()
+        .zip(&plane)
+        .map(|(g, p)| {
+            (
+                if g.on_front {
+                    g.params.clone()
+                } else {
+                    String::new()
+                },
+                *p,
+            )
+        })
+        .collect();
+    let title = format!(
+        "HoG + SVM grid on the {} split ({} frames): F1 vs time",
+        a.split,
+        frames.len()
+    );
+    let xlabel = format!("ms per frame (EdgeBoxes + HoG + SVMs, rayon threads: {threads})");
+    let ylabel = format!("F1 (margin >= {threshold}, IoU {iou})");
+    frugal_pareto::plot_front(
+        &a.out.join("grid"),
+        &frugal_pareto::FrontPlot {
+            title: &title,
+            accuracy_label: &ylabel,
+            latency_label: &xlabel,
+            points: &labelled,
+            front: &front,
+        },
+    )?;
+    let mut csv = String::from(
+        "params,proposals,block,cell,bins,tp,fp,missed,precision,recall,f1,ms_per_frame,on_front\n",
+    );
+    for g in &points {
+        csv.push_str(&format!(
+            "\"{}\",{},{},{},{},{},{},{},{:.4},{:.4},{:.4},{:.3},{}\n",
+            g.params,
+            g.proposals,
+            g.block,
+            g.cell,
+            g.bins,
+            g.tp,
+            g.fp,
+            g.missed,
+            g.precision,
+            g.recall,
+            g.f1,
+            g.ms_per_frame,
+            g.on_front
+        ));
+    }
+    frugal_data::dataset::write_atomic(&a.out.join("grid.csv"), csv.as_bytes())?;
+    let report = GridReport {
+        split: a.split.clone(),
+        frames: frames.len(),
+        train_frames,
+        train_seconds,
+        eval_seconds,
+        score_threshold: threshold,
+        iou,
+        rayon_threads: threads,
+        points,
+        front,
+    };
+    frugal_data::dataset::write_json_atomic(&a.out.join("grid.json"), &report)?;
+    println!(
+        "{} tuples on {} {} frames, scored in {eval_seconds:.1} s; Pareto front (F1 up, ms down):",
+        report.points.len(),
+        report.frames,
+        a.split
+    );
+    println!("| tuple | precision | recall | F1 | ms/frame |\n|---|---|---|---|---|");
+    for &i in &report.front {
+        let g = &report.points[i];
+        println!(
+            "| {} | {:.3} | {:.3} | {:.3} | {:.1} |",
+            g.params, g.precision, g.recall, g.f1, g.ms_per_frame
+        );
+    }
+    println!("wrote {}", a.out.join("grid.json|csv|png|svg").display());
     Ok(())
 }

@@ -31,6 +31,12 @@ impl ClassCounts {
         let n = self.tp + self.missed;
         (n > 0).then(|| self.tp as f64 / n as f64)
     }
+
+    /// `2 tp / (2 tp + fp + missed)`, or `None` without detections and signs.
+    pub fn f1(&self) -> Option<f64> {
+        let n = 2 * self.tp + self.fp + self.missed;
+        (n > 0).then(|| 2.0 * self.tp as f64 / n as f64)
+    }
 }
 
 /// Accuracy and time of one variant.
@@ -132,6 +138,64 @@ pub fn evaluate(
     })
 }
 
+/// Run many variants of one model over `frames`, sharing each frame's proposals: they
+/// are computed once per frame at the largest proposal count among `variants` (the
+/// first `n` of that list are the list for `n`), and that time is charged to every
+/// variant, plus the time the variant takes to classify its first `n` proposals (HoG,
+/// SVMs, NMS). `progress(done, total)` is called after each frame.
+///
+/// Every variant's HoG configuration must be trained in `model`.
+pub fn evaluate_many(
+    model: &FeatureModel,
+    variants: &[HogParams],
+    frames: &[LabeledFrame],
+    threshold: f32,
+    iou: f32,
+    progress: &dyn Fn(usize, usize),
+) -> Result<Vec<EvalReport>> {
+    let dets = variants
+        .iter()
+        .map(|&p| model.detector(p))
+        .collect::<Result<Vec<_>>>()?;
+    let max = variants
+        .iter()
+        .map(|p| p.proposals as usize)
+        .max()
+        .unwrap_or(0);
+    let mut per_class = vec![vec![ClassCounts::default(); model.classes.len()]; variants.len()];
+    let mut secs = vec![0.0f64; variants.len()];
+    for (i, f) in frames.iter().enumerate() {
+        let img = f.view()?;
+        let t = Instant::now();
+        let props = model.proposals(&img, max)?;
+        let shared = t.elapsed().as_secs_f64();
+        for ((det, counts), s) in dets.iter().zip(&mut per_class).zip(&mut secs) {
+            let t = Instant::now();
+            let found = det.detect_proposals(&img, &props);
+            *s += shared + t.elapsed().as_secs_f64();
+            match_frame(&found, &f.objects, threshold, iou, counts);
+        }
+        progress(i + 1, frames.len());
+    }
+    Ok(variants
+        .iter()
+        .zip(per_class)
+        .zip(secs)
+        .map(|((p, per_class), s)| EvalReport {
+            params: p.to_string(),
+            score_threshold: threshold,
+            iou,
+            frames: frames.len(),
+            per_class,
+            mean_ms: if frames.is_empty() {
+                0.0
+            } else {
+                1e3 * s / frames.len() as f64
+            },
+        })
+        .collect())
+}
+
 /// Proposal recall at IoU `iou` for each proposal count: `(count, recall)`, plus the
 /// mean time to compute a frame's proposals (ms).
 pub fn proposal_recall(
@@ -228,5 +292,8 @@ mod tests {
         assert_eq!(counts[1].precision(), Some(0.5));
         assert_eq!(counts[2].recall(), Some(0.0));
         assert_eq!(ClassCounts::default().precision(), None);
+        assert_eq!(counts[1].f1(), Some(2.0 / 3.0));
+        assert_eq!(counts[2].f1(), Some(0.0));
+        assert_eq!(ClassCounts::default().f1(), None);
     }
 }

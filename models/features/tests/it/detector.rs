@@ -269,3 +269,34 @@ fn training_without_signs_or_with_bad_classes_is_an_error() {
         Err(Error::Training(_))
     ));
 }
+
+#[test]
+fn scoring_many_variants_on_shared_proposals_counts_like_one_at_a_time() {
+    use frugal_features::eval::{evaluate, evaluate_many};
+    let model = model();
+    let frames: Vec<LabeledFrame> = (2000..2006u64).map(|s| scene(s, (s % 2) as u16)).collect();
+    let mut vs = variants();
+    vs.push(HogParams {
+        proposals: 30,
+        ..vs[0]
+    });
+    let calls = std::cell::Cell::new(0);
+    let many = evaluate_many(model, &vs, &frames, 0.0, 0.5, &|done, total| {
+        assert_eq!(total, frames.len());
+        calls.set(done);
+    })
+    .unwrap();
+    assert_eq!(calls.get(), frames.len());
+    assert_eq!(many.len(), vs.len());
+    for (v, m) in vs.iter().zip(&many) {
+        let one = evaluate(model, *v, &frames, 0.0, 0.5).unwrap();
+        assert_eq!(m.params, one.params);
+        assert_eq!(m.per_class, one.per_class, "{v}");
+        assert!(m.mean_ms > 0.0);
+        let t = m.total();
+        assert_eq!(t.tp + t.missed, frames.len(), "one sign per frame");
+    }
+    // Unknown HoG configurations are an error, not a panic.
+    let bad = HogParams { bins: 7, ..vs[0] };
+    assert!(evaluate_many(model, &[bad], &frames, 0.0, 0.5, &|_, _| {}).is_err());
+}
