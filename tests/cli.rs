@@ -43,5 +43,7 @@ mod fly;
 mod pareto;
 #[path = "cli/policy.rs"]
 mod policy;
+#[path = "cli/run.rs"]
+mod run;
 #[path = "cli/train.rs"]
 mod train;

@@ -48,6 +48,43 @@ pub struct TrainOptions {
     pub stop_after: Option<usize>,
     /// Show a progress bar.
     pub progress: bool,
+    /// Where to train: `Device::Cpu` (the default and tested path) or a CUDA device
+    /// (see [`parse_device`]). Checkpoints are device-independent.
+    pub device: Device,
+}
+
+/// Parse a device name: `cpu`, `cuda` (device 0) or `cuda:N`. A CUDA device is
+/// accepted only when the linked libtorch has CUDA and sees that device, so a CPU-only
+/// set-up fails here, before any work, with a message saying how to get CUDA.
+pub fn parse_device(name: &str) -> Result<Device, ModelError> {
+    let bad = |msg: String| ModelError::Config {
+        file: "--device".into(),
+        msg,
+    };
+    let index = match name {
+        "cpu" => return Ok(Device::Cpu),
+        "cuda" => 0,
+        other => other
+            .strip_prefix("cuda:")
+            .and_then(|n| n.parse::<usize>().ok())
+            .ok_or_else(|| {
+                bad(format!(
+                    "unknown device `{other}` (allowed: cpu, cuda, cuda:N)"
+                ))
+            })?,
+    };
+    if !tch::Cuda::is_available() {
+        return Err(bad(format!(
+            "`{name}` requested, but the linked libtorch has no CUDA or sees no GPU (set up a CUDA libtorch with `cargo xtask setup --cuda`)"
+        )));
+    }
+    let count = tch::Cuda::device_count() as usize;
+    if index >= count {
+        return Err(bad(format!(
+            "`{name}` requested, but only {count} CUDA device(s) are visible"
+        )));
+    }
+    Ok(Device::Cuda(index))
 }
 
 /// One line of the training curves.
@@ -397,7 +434,7 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
     }
 
     tch::manual_seed(tc.seed as i64);
-    let mut model = FasterRcnn::new(config.model.clone(), Device::Cpu)?;
+    let mut model = FasterRcnn::new(config.model.clone(), opts.device)?;
     let mut opt = Optimizer::new(model.var_store(), &tc);
     std::fs::create_dir_all(&opts.out).map_err(|e| ModelError::io(&opts.out, e))?;
     let mut state = if opts.resume {
@@ -447,14 +484,18 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
             tch::manual_seed(s as i64);
             opt.zero_grad();
             let mut parts = [0.0f64; 5];
-            let mut total = Tensor::zeros([], (Kind::Float, Device::Cpu));
+            let mut total = Tensor::zeros([], (Kind::Float, opts.device));
             for &i in batch {
                 let f = train_frames[i];
                 let rgb = ds
                     .load_rgb(f)
                     .map_err(|e| ModelError::Data(e.to_string()))?;
-                let (x, truth) =
-                    augment_geometry(&image_tensor(&rgb), &frame_truth(f), &tc, &mut rng);
+                let (x, truth) = augment_geometry(
+                    &image_tensor(&rgb).to_device(opts.device),
+                    &frame_truth(f),
+                    &tc,
+                    &mut rng,
+                );
                 let x = normalise(&model, &augment(&x, &tc, &mut rng));
                 let l = image_losses(&model, &x, &truth, &tc, &mut rng);
                 for (p, t) in

@@ -244,6 +244,7 @@ fn interrupted_training_resumes_to_the_same_weights() {
         resume: false,
         stop_after: None,
         progress: false,
+        device: tch::Device::Cpu,
     };
     let full = train(&opts("full")).unwrap();
     assert_eq!(full.state.epochs_done, 2);

@@ -344,7 +344,32 @@ struct PendingCell {
     cell: (usize, usize),
 }
 
+/// The shipped mazes (`sim/mazes/*.maze`), compiled in: the paper's Easy (one turn),
+/// Medium (two turns, one WAIT) and Hard (four turns, two WAITs).
+pub const BUILTIN_MAZES: [(&str, &str); 3] = [
+    ("easy", include_str!("../mazes/easy.maze")),
+    ("medium", include_str!("../mazes/medium.maze")),
+    ("hard", include_str!("../mazes/hard.maze")),
+];
+
 impl Maze {
+    /// A shipped maze by name (`easy`, `medium`, `hard`).
+    pub fn builtin(name: &str) -> Option<Maze> {
+        let (n, text) = BUILTIN_MAZES.iter().find(|(n, _)| *n == name)?;
+        Maze::parse(text, Path::new(&format!("sim/mazes/{n}.maze"))).ok()
+    }
+
+    /// A maze file, or a shipped maze by name when `arg` is `easy`, `medium` or `hard`
+    /// and no file of that name exists.
+    pub fn resolve(arg: &Path) -> Result<Maze, MazeError> {
+        if !arg.exists()
+            && let Some(m) = arg.to_str().and_then(Maze::builtin)
+        {
+            return Ok(m);
+        }
+        Maze::load(arg)
+    }
+
     /// Read and parse a maze file.
     pub fn load(path: &Path) -> Result<Maze, MazeError> {
         let text = std::fs::read_to_string(path).map_err(|source| MazeError::Io {
@@ -786,6 +811,22 @@ end
 
     fn parse(t: &str) -> Result<Maze, MazeError> {
         Maze::parse(t, Path::new("t.maze"))
+    }
+
+    #[test]
+    fn the_shipped_mazes_are_built_in_and_resolve_by_name() {
+        for (name, _) in BUILTIN_MAZES {
+            let m = Maze::builtin(name).unwrap_or_else(|| panic!("{name} parses"));
+            assert!(m.goal_connected(), "{name}");
+            let r = Maze::resolve(Path::new(name)).unwrap();
+            assert_eq!(
+                (r.width, r.height, r.signs.len()),
+                (m.width, m.height, m.signs.len())
+            );
+        }
+        assert!(Maze::builtin("nowhere").is_none());
+        let e = Maze::resolve(Path::new("nowhere")).unwrap_err().to_string();
+        assert!(e.contains("nowhere") && e.contains("cannot read"), "{e}");
     }
 
     #[test]

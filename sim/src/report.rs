@@ -362,10 +362,19 @@ fn draw_top<DB: DrawingBackend>(
         maze.height as f64 * maze.cell,
     );
     let perception = results.first().map_or("", |r| r.perception.as_str());
+    // flights of several perceptions on one view (static vs adaptive) say whose they are
+    let mixed = results.iter().any(|r| r.perception != perception);
+    let mut names: Vec<&str> = Vec::new();
+    for r in results {
+        if !names.contains(&r.perception.as_str()) {
+            names.push(&r.perception);
+        }
+    }
+    let perceptions = names.join(" vs ");
     let mut chart = ChartBuilder::on(&root)
         .caption(
             format!(
-                "{} maze — top view, {} flight(s), {perception}",
+                "{} maze — top view, {} flight(s), {perceptions}",
                 maze.name,
                 results.len()
             ),
@@ -463,9 +472,14 @@ fn draw_top<DB: DrawingBackend>(
         .legend(|(x, y)| Circle::new((x, y), 5, RED.stroke_width(2)));
     for (i, r) in results.iter().enumerate() {
         let colour = RUN_COLOURS[i % RUN_COLOURS.len()];
+        let who = if mixed {
+            format!("{} ", r.perception)
+        } else {
+            String::new()
+        };
         let label = match &r.outcome {
-            Outcome::Success => format!("seed {}: {:.1} s", r.seed, r.time_s),
-            other => format!("seed {}: {}", r.seed, other.describe()),
+            Outcome::Success => format!("{who}seed {}: {:.1} s", r.seed, r.time_s),
+            other => format!("{who}seed {}: {}", r.seed, other.describe()),
         };
         chart
             .draw_series(LineSeries::new(

@@ -14,7 +14,8 @@ use std::path::{Path, PathBuf};
 /// Arguments of `frugal fly`.
 #[derive(Args, Debug, Clone)]
 pub struct FlyArgs {
-    /// Maze file(s) (see `sim/mazes/README.md` for the format); repeat for several.
+    /// Maze file(s) (see `sim/mazes/README.md` for the format), or the name of a
+    /// shipped maze (`easy`, `medium`, `hard`); repeat for several.
     #[arg(long, required = true)]
     pub maze: Vec<PathBuf>,
     /// Flights per maze, with seeds `seed, seed+1, …`.
@@ -144,7 +145,7 @@ pub fn run(args: FlyArgs) -> anyhow::Result<()> {
     let mazes = args
         .maze
         .iter()
-        .map(|p| Maze::load(p))
+        .map(|p| Maze::resolve(p))
         .collect::<Result<Vec<_>, _>>()?;
     let mut summaries: Vec<Summary> = Vec::new();
     for maze in &mazes {

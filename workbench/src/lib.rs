@@ -53,7 +53,8 @@ enum Command {
     Policy(policy::PolicyArgs),
     /// Write, verify or inspect a policy bundle (the file the drone loads).
     Bundle(bundle::BundleArgs),
-    /// Run the pipeline into one run folder (currently: the data stage).
+    /// Run the whole pipeline into one run folder, skipping stages whose inputs are
+    /// unchanged, and write report.md / report.html.
     Run(run::RunArgs),
 }
 

@@ -2,7 +2,7 @@
 use anyhow::Context;
 use clap::Args;
 use frugal_models::config::Config;
-use frugal_models::train::{TrainOptions, train as train_model};
+use frugal_models::train::{TrainOptions, parse_device, train as train_model};
 use std::path::PathBuf;
 
 /// Arguments of `frugal train`.
@@ -26,6 +26,10 @@ pub struct TrainArgs {
     /// Override `train.epochs` (with --resume: extend a finished run to this many).
     #[arg(long)]
     pub epochs: Option<usize>,
+    /// Where to train: `cpu` (default, the tested path), `cuda` or `cuda:N` (needs a
+    /// CUDA libtorch: `cargo xtask setup --cuda`).
+    #[arg(long, default_value = "cpu")]
+    pub device: String,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -33,6 +37,7 @@ pub struct TrainArgs {
 
 /// Run `frugal train`.
 pub fn run(args: TrainArgs) -> anyhow::Result<()> {
+    let device = parse_device(&args.device)?;
     let config = match (&args.config, args.resume) {
         (Some(p), _) => Config::load(p)?,
         // resuming without --config: take the run's own config
@@ -51,6 +56,7 @@ pub fn run(args: TrainArgs) -> anyhow::Result<()> {
         resume: args.resume,
         stop_after: args.stop_after,
         progress: !args.quiet,
+        device,
     })
     .with_context(|| format!("training on {}", args.data.display()))?;
     let s = &report.state;

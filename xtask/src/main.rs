@@ -49,6 +49,18 @@ const ONNXRUNTIME: Wheel = Wheel {
 };
 
 const LIBTORCH_DIR: &str = "libtorch-2.13.0-cpu";
+const LIBTORCH_CUDA_DIR: &str = "libtorch-2.13.0-cuda";
+
+/// Which libtorch `.deps/libtorch` points at.
+#[derive(Clone, Copy, PartialEq)]
+enum Torch {
+    /// The CPU-only libtorch (the default, tested path).
+    Cpu,
+    /// A CUDA libtorch (`setup --cuda`).
+    Cuda,
+    /// Whatever was set up last (CPU on a fresh machine).
+    Keep,
+}
 const ORT_DIR: &str = "onnxruntime-1.31.1";
 const ORT_LIB: &str = "libonnxruntime.so.1.31.1";
 const BARE_METAL_TARGET: &str = "thumbv7em-none-eabihf";
@@ -60,13 +72,18 @@ type Result<T> = std::result::Result<T, String>;
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let outcome = match args.first().map(String::as_str) {
-        Some("setup") => setup().map(|_| ()),
-        Some("run") => setup().and_then(|_| main_job(&args[1..])),
-        Some("test") => setup().and_then(|_| test_all()),
+        Some("setup") => match args.get(1).map(String::as_str) {
+            None => setup(Torch::Cpu).map(|_| ()),
+            Some("--cuda") => setup(Torch::Cuda).map(|_| ()),
+            Some(other) => Err(format!("unknown setup option `{other}` (allowed: --cuda)")),
+        },
+        Some("run") => setup(Torch::Keep).and_then(|_| main_job(&args[1..])),
+        Some("test") => setup(Torch::Keep).and_then(|_| test_all()),
         _ => {
             eprintln!(
-                "usage: cargo xtask <setup|run [ARGS]|test>\n\
+                "usage: cargo xtask <setup [--cuda]|run [ARGS]|test>\n\
                  \n  setup  fetch libtorch, ONNX Runtime, Python test peers and the bare-metal target\
+                 \n         (--cuda: a CUDA libtorch instead of the CPU one, for `frugal train --device cuda`)\
                  \n  run    set up, then run the whole pipeline on the built-in synthetic data\
                  \n  test   set up, then run every check (fmt, clippy, tests, no_std build)"
             );
@@ -291,6 +308,75 @@ fn assemble_libtorch(cache: &Path) -> Result<PathBuf> {
     Ok(dir)
 }
 
+/// A CUDA libtorch: the same pinned torch wheel, with every library kept, plus the
+/// CUDA wheels it depends on. Their exact versions come from the torch wheel's own
+/// metadata; pip resolves them (several GB, not hash-pinned here, and not exercised by
+/// CI, whose machines have no GPU).
+fn assemble_libtorch_cuda(cache: &Path) -> Result<PathBuf> {
+    let dir = cache.join(LIBTORCH_CUDA_DIR);
+    let wheels = cache.join("wheels");
+    build_dir(&dir, |tmp| {
+        let torch = fetch_wheel(&wheels, &TORCH)?;
+        let site = tmp.join("site");
+        eprintln!(
+            "xtask: installing torch 2.13.0 with its CUDA libraries into {}",
+            site.display()
+        );
+        run(
+            Command::new("python3")
+                .args([
+                    "-m",
+                    "pip",
+                    "install",
+                    "--quiet",
+                    "--no-compile",
+                    "--only-binary=:all:",
+                    "--target",
+                ])
+                .arg(&site)
+                .arg(&torch),
+            "installing torch 2.13.0 and its CUDA wheels (check the network and pip's index settings, then run again)",
+        )?;
+        let lib = tmp.join("lib");
+        fs::create_dir_all(&lib).map_err(|e| format!("cannot create {}: {e}", lib.display()))?;
+        let rename = |from: &Path, to: &Path| {
+            fs::rename(from, to)
+                .map_err(|e| format!("cannot move {} to {}: {e}", from.display(), to.display()))
+        };
+        rename(&site.join("torch/include"), &tmp.join("include"))?;
+        // torch's own libraries, then every CUDA library of the nvidia wheels
+        let mut lib_dirs = vec![site.join("torch/lib")];
+        let nvidia = site.join("nvidia");
+        for entry in fs::read_dir(&nvidia)
+            .map_err(|e| {
+                format!(
+                    "{}: {e} (did pip install the CUDA wheels?)",
+                    nvidia.display()
+                )
+            })?
+            .flatten()
+        {
+            for sub in [entry.path().join("lib"), entry.path().join("cu13/lib")] {
+                if sub.is_dir() {
+                    lib_dirs.push(sub);
+                }
+            }
+        }
+        for d in lib_dirs {
+            for f in fs::read_dir(&d)
+                .map_err(|e| format!("{}: {e}", d.display()))?
+                .flatten()
+            {
+                rename(&f.path(), &lib.join(f.file_name()))?;
+            }
+        }
+        fs::remove_dir_all(&site).map_err(|e| format!("cannot remove {}: {e}", site.display()))?;
+        fs::write(tmp.join("build-version"), b"2.13.0\n")
+            .map_err(|e| format!("cannot write build-version: {e}"))
+    })?;
+    Ok(dir)
+}
+
 fn assemble_onnxruntime(cache: &Path) -> Result<PathBuf> {
     let dir = cache.join(ORT_DIR);
     let wheels = cache.join("wheels");
@@ -411,12 +497,20 @@ fn symlink(target: &Path, link: &Path) -> Result<()> {
 }
 
 /// Everything the workspace needs; returns the `.deps` folder.
-fn setup() -> Result<PathBuf> {
+fn setup(torch: Torch) -> Result<PathBuf> {
     check_python()?;
     system_packages()?;
     let cache = cache_dir()?;
     fs::create_dir_all(&cache).map_err(|e| format!("cannot create {}: {e}", cache.display()))?;
-    let libtorch = assemble_libtorch(&cache)?;
+    let link = workspace_root().join(".deps/libtorch");
+    let keep_cuda = torch == Torch::Keep
+        && fs::read_link(&link).is_ok_and(|t| t.ends_with(LIBTORCH_CUDA_DIR))
+        && cache.join(LIBTORCH_CUDA_DIR).join(".complete").exists();
+    let libtorch = if torch == Torch::Cuda || keep_cuda {
+        assemble_libtorch_cuda(&cache)?
+    } else {
+        assemble_libtorch(&cache)?
+    };
     let ort = assemble_onnxruntime(&cache)?;
     let venv = python_env(&cache)?;
     bare_metal_target()?;

@@ -1,0 +1,284 @@
+//! `frugal run`: the whole pipeline on the tiny profile, stage skipping, config
+//! checking before any work, and restarts after the process is killed mid-stage.
+use super::{frugal, json, p};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+const STAGES: [&str; 9] = [
+    "data",
+    "detector",
+    "variants",
+    "pareto",
+    "replay",
+    "policy",
+    "evaluation",
+    "bundle",
+    "flights",
+];
+
+fn run_tiny(out: &Path, config: Option<&Path>) {
+    let mut args = vec!["run", "--tiny", "--quiet", "--out", p(out)];
+    if let Some(c) = config {
+        args.push(p(c));
+    }
+    frugal(&args).unwrap_or_else(|e| panic!("frugal run: {e}"));
+}
+
+fn stamp(run: &Path, stage: &str) -> serde_json::Value {
+    json(&run.join(stage).join(".stamp.json"))
+}
+
+/// Every file under `dir` (relative path → bytes).
+fn files(dir: &Path) -> BTreeMap<PathBuf, Vec<u8>> {
+    fn walk(root: &Path, dir: &Path, out: &mut BTreeMap<PathBuf, Vec<u8>>) {
+        for e in std::fs::read_dir(dir).unwrap().flatten() {
+            let path = e.path();
+            if path.is_dir() {
+                walk(root, &path, out);
+            } else {
+                let rel = path.strip_prefix(root).unwrap().to_owned();
+                out.insert(rel, std::fs::read(&path).unwrap());
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    walk(dir, dir, &mut out);
+    out
+}
+
+#[test]
+fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = tmp.path().join("run");
+    run_tiny(&run, None);
+    for stage in STAGES {
+        let s = stamp(&run, stage);
+        assert_eq!(s["stage"], stage);
+        assert!(
+            s["commands"].as_array().is_some_and(|c| !c.is_empty()),
+            "{stage}: {s}"
+        );
+        assert!(
+            !run.join(format!("{stage}.partial")).exists(),
+            "{stage} left a partial folder"
+        );
+    }
+    for f in [
+        "data/dataset/manifest.json",
+        "data/contact_sheet.png",
+        "detector/model/best.safetensors",
+        "detector/model/curves.png",
+        "detector/eval-test/report.json",
+        "pareto/variants.json",
+        "pareto/pareto_map.png",
+        "replay/replay.json",
+        "policy/policy.json",
+        "evaluation/eval.json",
+        "evaluation/bars-f1.png",
+        "bundle/policy.frpb",
+        "flights/comparison.json",
+        "flights/easy_top_view.png",
+        "flights/static/easy/flights.json",
+        "flights/adaptive/easy/flights.json",
+        "config/run.json",
+        "report.md",
+        "report.html",
+    ] {
+        assert!(run.join(f).is_file(), "{f} missing");
+    }
+    frugal(&["bundle", "verify", p(&run.join("bundle"))]).unwrap();
+    let md = std::fs::read_to_string(run.join("report.md")).unwrap();
+    for needle in [
+        "## Headline figures",
+        "frugal train --data",
+        "frugal policy eval",
+        "frugal fly",
+        "![contact sheet](data/contact_sheet.png)",
+        "![Pareto front, mAP](pareto/pareto_map.png)",
+        "flights/easy_top_view.png",
+        "| easy | adaptive (bundle) |",
+    ] {
+        assert!(md.contains(needle), "report.md lacks {needle:?}");
+    }
+    let html = std::fs::read_to_string(run.join("report.html")).unwrap();
+    assert!(html.contains("<table>") && html.contains("src=\"data/contact_sheet.png\""));
+    let cmp = json(&run.join("flights/comparison.json"));
+    assert_eq!(cmp[0]["maze"], "easy");
+    assert_eq!(cmp[0]["static"]["runs"], 1);
+    assert_eq!(cmp[0]["adaptive"]["runs"], 1);
+
+    // nothing changed: every stage is skipped and no artifact is touched
+    let before = files(&run);
+    run_tiny(&run, None);
+    let after = files(&run);
+    let changed: Vec<&PathBuf> = before
+        .keys()
+        .filter(|k| !k.starts_with("report.md") && !k.starts_with("report.html"))
+        .filter(|k| before.get(*k) != after.get(*k))
+        .collect();
+    assert!(changed.is_empty(), "a skipped run changed {changed:?}");
+
+    // a new α changes the policy and what depends on it, nothing upstream
+    let cfg = tmp.path().join("alpha.toml");
+    std::fs::write(&cfg, "profile = \"tiny\"\n[policy]\nalpha = 2.5\n").unwrap();
+    let old: Vec<serde_json::Value> = STAGES.iter().map(|s| stamp(&run, s)).collect();
+    run_tiny(&run, Some(&cfg));
+    for (stage, old) in STAGES.iter().zip(&old) {
+        let new = stamp(&run, stage);
+        let same = new == *old;
+        let upstream = ["data", "detector", "variants", "pareto", "replay"].contains(stage);
+        assert_eq!(same, upstream, "{stage}: unchanged = {same}");
+    }
+    assert_eq!(
+        json(&run.join("policy/policy.json"))["config"]["alpha"],
+        2.5
+    );
+}
+
+#[test]
+fn a_bad_config_is_refused_before_anything_is_written() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = tmp.path().join("run");
+    for (text, needles) in [
+        (
+            "[detector.train]\nepochz = 3\n",
+            &["detector.train.epochz", "epochs"][..],
+        ),
+        (
+            "[pareto]\nthreshold = 1.5\n",
+            &["pareto.threshold", "1.5"][..],
+        ),
+        (
+            "[flights]\nmazes = [\"missing.maze\"]\n",
+            &["flights.mazes", "missing.maze", "easy, medium, hard"][..],
+        ),
+        (
+            "profile = \"huge\"\n",
+            &["huge", "default, quick, tiny"][..],
+        ),
+    ] {
+        let cfg = tmp.path().join("bad.toml");
+        std::fs::write(&cfg, text).unwrap();
+        let e = frugal(&["run", "--quiet", "--out", p(&run), p(&cfg)]).unwrap_err();
+        assert!(e.contains("bad.toml"), "{e}");
+        for n in needles {
+            assert!(e.contains(n), "{text:?}: {e} lacks {n}");
+        }
+        assert!(!run.exists(), "{text:?}: the run folder was created");
+    }
+    let e = frugal(&["run", "--quiet", "--out", p(&run), "/nonexistent/run.toml"]).unwrap_err();
+    assert!(e.contains("/nonexistent/run.toml"), "{e}");
+    let e = frugal(&["run", "--quiet", "--out", p(&run), "--device", "tpu"]).unwrap_err();
+    assert!(e.contains("tpu") && e.contains("cuda"), "{e}");
+    assert!(!run.exists());
+}
+
+/// The child process of the kill test: a tiny run into `FRUGAL_KILL_CHILD_DIR`.
+#[test]
+#[ignore = "the kill test runs this in a child process"]
+fn kill_child() {
+    if let Ok(dir) = std::env::var("FRUGAL_KILL_CHILD_DIR") {
+        run_tiny(Path::new(&dir), None);
+    }
+}
+
+/// Start the child run, wait until `ready` holds for the run folder, then SIGKILL it.
+/// Returns whether the kill landed before the child finished by itself.
+fn kill_when(run: &Path, ready: impl Fn(&Path) -> bool) -> bool {
+    let mut child = Command::new(std::env::current_exe().unwrap())
+        .args([
+            "run::kill_child",
+            "--exact",
+            "--ignored",
+            "--test-threads=1",
+        ])
+        .env("FRUGAL_KILL_CHILD_DIR", run)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            assert!(status.success(), "the child run failed: {status}");
+            return false;
+        }
+        if ready(run) {
+            child.kill().unwrap();
+            child.wait().unwrap();
+            return true;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(600), "child run hung");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+#[test]
+fn a_run_killed_at_several_points_finishes_with_the_same_artifacts() {
+    let tmp = tempfile::tempdir().unwrap();
+    // the reference runs in a child process too: torch's random generator is global,
+    // and other tests in this process train at the same time
+    let reference = tmp.path().join("reference");
+    assert!(!kill_when(&reference, |_| false));
+    let run = tmp.path().join("killed");
+    // each kill lands in a different stage: during training (after the first epoch's
+    // checkpoint), while variants are written, during replay, during the flights
+    type Ready = fn(&Path) -> bool;
+    let points: [(&str, Ready); 4] = [
+        ("training", |r| {
+            r.join("detector.partial/model/checkpoint/state.json")
+                .exists()
+        }),
+        ("compression", |r| r.join("variants.partial/base").exists()),
+        ("replay", |r| r.join("replay.partial").exists()),
+        ("flights", |r| r.join("flights.partial/static").exists()),
+    ];
+    let mut landed = Vec::new();
+    let mut data_stamp = None;
+    for (name, ready) in points {
+        if kill_when(&run, ready) {
+            landed.push(name);
+        }
+        // a stage completed before a kill is never redone
+        if let Ok(s) = std::fs::read(run.join("data/.stamp.json")) {
+            let first = data_stamp.get_or_insert_with(|| s.clone());
+            assert_eq!(*first, s, "the data stage ran again after a kill");
+        }
+    }
+    assert!(
+        landed.len() >= 3,
+        "only the kills during {landed:?} landed before the child finished"
+    );
+    assert!(
+        !kill_when(&run, |_| false),
+        "the last start runs to the end"
+    );
+
+    // no half-written stage is left, and every artifact of the reference exists
+    let (want, got) = (files(&reference), files(&run));
+    let names = |m: &BTreeMap<PathBuf, Vec<u8>>| m.keys().cloned().collect::<Vec<_>>();
+    assert_eq!(names(&want), names(&got), "artifact sets differ");
+    for e in std::fs::read_dir(&run).unwrap().flatten() {
+        let n = e.file_name().to_string_lossy().into_owned();
+        assert!(
+            !n.ends_with(".partial") && !n.ends_with(".old"),
+            "{n} left behind"
+        );
+    }
+    // the deterministic outputs (the dataset, the trained weights, the compressed
+    // models) are identical bytes; logs, curves and later stages hold timings
+    let deterministic = |k: &PathBuf| {
+        k.starts_with("data/dataset")
+            || ((k.starts_with("detector") || k.starts_with("variants"))
+                && k.extension()
+                    .is_some_and(|e| e == "safetensors" || e == "onnx"))
+    };
+    let compared: Vec<&PathBuf> = want.keys().filter(|k| deterministic(k)).collect();
+    assert!(compared.len() > 20, "{compared:?}");
+    for k in compared {
+        assert!(want[k] == got[k], "{} differs after the kills", k.display());
+    }
+    frugal(&["bundle", "verify", p(&run.join("bundle"))]).unwrap();
+}

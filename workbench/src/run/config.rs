@@ -1,0 +1,565 @@
+//! The configuration of `frugal run`: one section per stage, each the stage's own
+//! config type, on top of a built-in profile (`default`, `quick`, `tiny`).
+//!
+//! A config file (TOML or JSON) names a `profile` (default: `default`) and overrides
+//! any subset of its values; tables merge key by key, lists and tagged values (tables
+//! with a `kind` or `method` key) replace the profile's whole. Everything is checked
+//! before any work starts: an unknown key is named with its path and the keys allowed
+//! there, a value out of range with its section, a maze that does not exist by name.
+use anyhow::{Context, bail};
+use clap::ValueEnum;
+use frugal_data::GenConfig;
+use frugal_models::compress::Grid;
+use frugal_models::config::Config as DetectorConfig;
+use frugal_policies::PolicyConfig;
+use frugal_policies::eval::EvalConfig;
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+/// A built-in starting point.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Profile {
+    /// The real configuration: the README's figures come from it (≤ 30 min on 2 cores).
+    Default,
+    /// A first look in a few minutes: small frames, a small model, few variants.
+    Quick,
+    /// Seconds: what the end-to-end tests run.
+    Tiny,
+}
+
+/// `frugal pareto` settings.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParetoSettings {
+    /// ONNX Runtime intra-op threads, the same for every variant.
+    pub threads: usize,
+    /// Validation frames scored per variant, spread evenly (0 = all).
+    pub frames: usize,
+    /// Untimed warm-up detections per variant.
+    pub warmup: usize,
+    /// Score threshold of precision / recall / F1 and IoU.
+    pub threshold: f32,
+}
+
+/// `frugal policy record` settings.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReplaySettings {
+    /// Videos per (split, clutter, light) replayed (0 = all); the MDP is estimated on
+    /// the training videos and the strategies are compared on the test videos.
+    pub per_combo: usize,
+    /// ONNX Runtime threads per variant.
+    pub threads: usize,
+    /// Detections kept per frame and variant.
+    pub max_detections: usize,
+}
+
+/// `frugal fly` settings: static (the most accurate variant) against adaptive (the
+/// bundle), on the same mazes, seeds and device profile.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FlightSettings {
+    /// Shipped maze names (`easy`, `medium`, `hard`) or maze files.
+    pub mazes: Vec<String>,
+    /// Flights per maze and perception.
+    pub seeds: u64,
+    /// First seed.
+    pub seed: u64,
+    /// Device profile (`host` or `tx2-like`).
+    pub device: String,
+    /// Camera size, pixels.
+    pub width: u32,
+    /// Camera height, pixels.
+    pub height: u32,
+    /// Simulated time limit per flight, seconds.
+    pub time_limit_s: f64,
+    /// ONNX Runtime threads.
+    pub threads: usize,
+    /// Save the first adaptive flight of each maze as a GIF.
+    pub gif: bool,
+}
+
+/// The whole pipeline's configuration.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunConfig {
+    /// The profile the values started from.
+    pub profile: Profile,
+    /// `frugal data generate`.
+    pub data: GenConfig,
+    /// `frugal train` (model structure and training).
+    pub detector: DetectorConfig,
+    /// `frugal compress` (the variant grid).
+    pub compress: Grid,
+    /// `frugal pareto`.
+    pub pareto: ParetoSettings,
+    /// `frugal policy record`.
+    pub replay: ReplaySettings,
+    /// `frugal policy train`.
+    pub policy: PolicyConfig,
+    /// `frugal policy eval` (its thresholds go into the bundle too).
+    pub evaluation: EvalConfig,
+    /// `frugal fly`.
+    pub flights: FlightSettings,
+}
+
+/// The variant grid of the quick profile: the base model, int8, channel pruning and
+/// layer removal, so the policy still has a spread of costs to choose from.
+const QUICK_GRID: &str = r#"
+calibration_frames = 8
+drift_frames = 4
+[finetune]
+steps = 40
+frames = 36
+[[variants]]
+name = "base"
+technique = { kind = "base" }
+[[variants]]
+name = "base-int8"
+parent = "base"
+technique = { kind = "int8" }
+[[variants]]
+name = "ch50"
+technique = { kind = "channels", keep = 0.5 }
+[[variants]]
+name = "ch50-int8"
+parent = "ch50"
+technique = { kind = "int8" }
+[[variants]]
+name = "res050"
+technique = { kind = "resolution", scale = 0.5 }
+"#;
+
+/// The tiny profile's grid: three variants, two fine-tuning steps.
+const TINY_GRID: &str = r#"
+calibration_frames = 3
+drift_frames = 2
+[finetune]
+steps = 2
+frames = 6
+[[variants]]
+name = "base"
+technique = { kind = "base" }
+[[variants]]
+name = "base-int8"
+parent = "base"
+technique = { kind = "int8", calibration = { method = "min_max" } }
+[[variants]]
+name = "ch50"
+technique = { kind = "channels", keep = 0.5 }
+"#;
+
+/// The tiny profile's detector: a few thousand parameters, one short epoch.
+const TINY_DETECTOR: &str = r#"
+[model]
+backbone = [
+  { out_channels = 8, stride = 2, convs = 1 },
+  { out_channels = 16, stride = 2, convs = 1 },
+  { out_channels = 16, stride = 1, convs = 1 },
+]
+rpn_channels = 8
+anchor_sizes = [12.0, 24.0]
+anchor_ratios = [1.0]
+roi_size = 3
+roi_hidden = 16
+pre_nms_train = 100
+post_nms_train = 30
+pre_nms_test = 100
+post_nms_test = 10
+[train]
+epochs = 2
+batch_size = 3
+warmup_steps = 1
+train_frames = 6
+val_frames = 2
+threads = 1
+"#;
+
+/// The quick profile's detector: half the default widths, 320×180 frames.
+const QUICK_DETECTOR: &str = r#"
+[model]
+backbone = [
+  { out_channels = 16, stride = 2, convs = 1 },
+  { out_channels = 32, stride = 2, convs = 1 },
+  { out_channels = 64, stride = 2, convs = 1 },
+  { out_channels = 128, stride = 1, convs = 1 },
+]
+rpn_channels = 32
+roi_hidden = 128
+[train]
+epochs = 3
+batch_size = 4
+warmup_steps = 10
+val_frames = 30
+threads = 1
+"#;
+
+impl RunConfig {
+    /// The built-in values of a profile.
+    pub fn profile(profile: Profile) -> anyhow::Result<RunConfig> {
+        let parse_grid = |text: &str| toml::from_str::<Grid>(text).context("built-in grid");
+        let parse_detector =
+            |text: &str| toml::from_str::<DetectorConfig>(text).context("built-in detector");
+        let mut detector = DetectorConfig::default();
+        detector.train.threads = 1;
+        let default_flights = FlightSettings {
+            mazes: vec!["easy".into(), "medium".into(), "hard".into()],
+            seeds: 2,
+            seed: 1,
+            device: "tx2-like".into(),
+            width: 480,
+            height: 270,
+            time_limit_s: 900.0,
+            threads: 1,
+            gif: true,
+        };
+        Ok(match profile {
+            Profile::Default => RunConfig {
+                profile,
+                data: GenConfig::default(),
+                detector,
+                compress: Grid::default(),
+                pareto: ParetoSettings {
+                    threads: 1,
+                    frames: 0,
+                    warmup: 3,
+                    threshold: 0.5,
+                },
+                replay: ReplaySettings {
+                    per_combo: 3,
+                    threads: 1,
+                    max_detections: frugal_policies::replay::DEFAULT_MAX_DETECTIONS,
+                },
+                policy: PolicyConfig::default(),
+                evaluation: EvalConfig::default(),
+                flights: default_flights,
+            },
+            Profile::Quick => RunConfig {
+                profile,
+                data: GenConfig::quick(),
+                detector: parse_detector(QUICK_DETECTOR)?,
+                compress: parse_grid(QUICK_GRID)?,
+                pareto: ParetoSettings {
+                    threads: 1,
+                    frames: 0,
+                    warmup: 2,
+                    threshold: 0.5,
+                },
+                replay: ReplaySettings {
+                    per_combo: 0,
+                    threads: 1,
+                    max_detections: frugal_policies::replay::DEFAULT_MAX_DETECTIONS,
+                },
+                policy: PolicyConfig::default(),
+                evaluation: EvalConfig::default(),
+                flights: FlightSettings {
+                    mazes: vec!["easy".into()],
+                    seeds: 1,
+                    width: 320,
+                    height: 180,
+                    time_limit_s: 300.0,
+                    gif: false,
+                    ..default_flights
+                },
+            },
+            Profile::Tiny => RunConfig {
+                profile,
+                data: GenConfig::tiny(),
+                detector: parse_detector(TINY_DETECTOR)?,
+                compress: parse_grid(TINY_GRID)?,
+                pareto: ParetoSettings {
+                    threads: 1,
+                    frames: 0,
+                    warmup: 1,
+                    threshold: 0.5,
+                },
+                replay: ReplaySettings {
+                    per_combo: 0,
+                    threads: 1,
+                    max_detections: frugal_policies::replay::DEFAULT_MAX_DETECTIONS,
+                },
+                policy: PolicyConfig {
+                    sweep_alpha: vec![0.0, 1.0],
+                    sweep_ge_scale: vec![1.0],
+                    ..PolicyConfig::default()
+                },
+                evaluation: EvalConfig::default(),
+                flights: FlightSettings {
+                    mazes: vec!["easy".into()],
+                    seeds: 1,
+                    device: "host".into(),
+                    width: 160,
+                    height: 90,
+                    time_limit_s: 4.0,
+                    gif: false,
+                    ..default_flights
+                },
+            },
+        })
+    }
+
+    /// Read a config file over its profile (`profile` key, else `fallback`), then
+    /// check every value. Nothing is written.
+    pub fn load(path: Option<&Path>, fallback: Profile) -> anyhow::Result<RunConfig> {
+        let Some(path) = path else {
+            let cfg = RunConfig::profile(fallback)?;
+            cfg.check(Path::new("<built-in>"))?;
+            return Ok(cfg);
+        };
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("{}: cannot read the run config", path.display()))?;
+        let user: Value = if path.extension().is_some_and(|e| e == "toml") {
+            toml::from_str(&text).with_context(|| format!("{}: invalid TOML", path.display()))?
+        } else {
+            serde_json::from_str(&text)
+                .with_context(|| format!("{}: invalid JSON", path.display()))?
+        };
+        let Value::Object(map) = &user else {
+            bail!("{}: the run config must be a table", path.display());
+        };
+        let profile = match map.get("profile") {
+            None => fallback,
+            Some(v) => serde_json::from_value(v.clone()).map_err(|_| {
+                anyhow::anyhow!(
+                    "{}: profile: {v} is not a profile (allowed: default, quick, tiny)",
+                    path.display()
+                )
+            })?,
+        };
+        let mut merged = serde_json::to_value(RunConfig::profile(profile)?)?;
+        merge(&mut merged, &user, "").with_context(|| path.display().to_string())?;
+        let cfg = from_sections(&merged).with_context(|| path.display().to_string())?;
+        cfg.check(path)?;
+        Ok(cfg)
+    }
+
+    /// Range checks of every section; `path` names the file in errors.
+    pub fn check(&self, path: &Path) -> anyhow::Result<()> {
+        let file = path.display().to_string();
+        self.data
+            .validate(path)
+            .context("in section [data]")?;
+        self.detector
+            .validate(&format!("{file} [detector]"))
+            .map_err(anyhow::Error::from)?;
+        self.compress
+            .validate(&format!("{file} [compress]"))
+            .map_err(anyhow::Error::from)?;
+        self.policy
+            .check(path)
+            .context("in section [policy]")?;
+        let bad = |key: &str, msg: String| anyhow::anyhow!("{file}: {key}: {msg}");
+        let p = &self.pareto;
+        if p.threads == 0 {
+            return Err(bad("pareto.threads", "must be at least 1".into()));
+        }
+        if !(0.0..=1.0).contains(&p.threshold) {
+            return Err(bad(
+                "pareto.threshold",
+                format!("{} is outside [0, 1]", p.threshold),
+            ));
+        }
+        if self.replay.threads == 0 || self.replay.max_detections == 0 {
+            return Err(bad(
+                "replay.threads / replay.max_detections",
+                "must be at least 1".into(),
+            ));
+        }
+        let e = &self.evaluation;
+        if !(0.0..=1.0).contains(&e.iou_threshold) || !(0.0..=1.0).contains(&e.eval_iou) {
+            return Err(bad(
+                "evaluation.iou_threshold / evaluation.eval_iou",
+                "must lie in [0, 1]".into(),
+            ));
+        }
+        if e.mdp_period == 0 || e.reinit_period == 0 || e.max_tracks == 0 {
+            return Err(bad(
+                "evaluation.mdp_period / reinit_period / max_tracks",
+                "must be at least 1".into(),
+            ));
+        }
+        let f = &self.flights;
+        if f.mazes.is_empty() {
+            return Err(bad("flights.mazes", "name at least one maze".into()));
+        }
+        for m in &f.mazes {
+            frugal_sim::Maze::resolve(Path::new(m)).map_err(|e| {
+                bad(
+                    "flights.mazes",
+                    format!("{e} (shipped mazes: easy, medium, hard)"),
+                )
+            })?;
+        }
+        if f.seeds == 0 {
+            return Err(bad("flights.seeds", "must be at least 1".into()));
+        }
+        if frugal_sim::DeviceProfile::by_name(&f.device).is_none() {
+            return Err(bad(
+                "flights.device",
+                format!(
+                    "`{}` is not a device profile (allowed: host, tx2-like)",
+                    f.device
+                ),
+            ));
+        }
+        if f.width < 32 || f.height < 18 {
+            return Err(bad(
+                "flights.width / flights.height",
+                "the camera needs at least 32×18 pixels".into(),
+            ));
+        }
+        if !(f.time_limit_s > 0.0 && f.time_limit_s.is_finite()) {
+            return Err(bad("flights.time_limit_s", "must be positive".into()));
+        }
+        if f.threads == 0 {
+            return Err(bad("flights.threads", "must be at least 1".into()));
+        }
+        Ok(())
+    }
+
+    /// Maze arguments for `frugal fly`: a file path when one exists, else the name.
+    pub fn maze_args(&self) -> Vec<PathBuf> {
+        self.flights.mazes.iter().map(PathBuf::from).collect()
+    }
+}
+
+/// Deserialize section by section, so a wrong type names its section.
+fn from_sections(v: &Value) -> anyhow::Result<RunConfig> {
+    fn section<T: serde::de::DeserializeOwned>(v: &Value, key: &str) -> anyhow::Result<T> {
+        serde_json::from_value(v.get(key).cloned().unwrap_or(Value::Null))
+            .with_context(|| format!("[{key}]"))
+    }
+    Ok(RunConfig {
+        profile: section(v, "profile")?,
+        data: section(v, "data")?,
+        detector: section(v, "detector")?,
+        compress: section(v, "compress")?,
+        pareto: section(v, "pareto")?,
+        replay: section(v, "replay")?,
+        policy: section(v, "policy")?,
+        evaluation: section(v, "evaluation")?,
+        flights: section(v, "flights")?,
+    })
+}
+
+/// Overlay `user` on `base`: tables merge key by key (a key the base lacks is an
+/// error naming its path and the allowed keys); lists, scalars and tagged tables
+/// replace the base value.
+fn merge(base: &mut Value, user: &Value, path: &str) -> anyhow::Result<()> {
+    const TAGS: [&str; 2] = ["kind", "method"];
+    match (base, user) {
+        (Value::Object(b), Value::Object(u)) if !TAGS.iter().any(|t| u.contains_key(*t)) => {
+            for (k, uv) in u {
+                let here = if path.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{path}.{k}")
+                };
+                match b.get_mut(k) {
+                    Some(bv) => merge(bv, uv, &here)?,
+                    None => {
+                        let mut allowed: Vec<&str> = b.keys().map(String::as_str).collect();
+                        allowed.sort_unstable();
+                        bail!(
+                            "unknown key `{here}` (allowed here: {})",
+                            allowed.join(", ")
+                        );
+                    }
+                }
+            }
+            Ok(())
+        }
+        (b, u) => {
+            *b = u.clone();
+            Ok(())
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn load(text: &str) -> anyhow::Result<RunConfig> {
+        let dir = tempfile::tempdir()?;
+        let path = dir.path().join("run.toml");
+        std::fs::write(&path, text)?;
+        RunConfig::load(Some(&path), Profile::Default).map_err(|e| anyhow::anyhow!("{e:#}"))
+    }
+
+    #[test]
+    fn every_profile_is_valid() {
+        for p in [Profile::Default, Profile::Quick, Profile::Tiny] {
+            let cfg = RunConfig::profile(p).unwrap();
+            cfg.check(Path::new("<built-in>")).unwrap();
+            assert_eq!(cfg.profile, p);
+        }
+    }
+
+    #[test]
+    fn a_file_overrides_its_profile_key_by_key() {
+        let cfg = load(
+            "profile = \"quick\"\n[detector.train]\nepochs = 7\n[flights]\nmazes = [\"hard\"]\n",
+        )
+        .unwrap();
+        let quick = RunConfig::profile(Profile::Quick).unwrap();
+        assert_eq!(cfg.detector.train.epochs, 7);
+        // untouched keys keep the quick profile's values, not the types' defaults
+        assert_eq!(cfg.detector.model, quick.detector.model);
+        assert_eq!(
+            cfg.detector.train.batch_size,
+            quick.detector.train.batch_size
+        );
+        assert_eq!(cfg.data, quick.data);
+        assert_eq!(cfg.flights.mazes, vec!["hard".to_string()]);
+        assert_eq!(cfg.flights.width, quick.flights.width);
+    }
+
+    #[test]
+    fn bad_configs_name_the_key_and_what_is_allowed() {
+        let e = load("[detector.train]\nepochz = 3\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("detector.train.epochz") && e.contains("epochs") && e.contains("run.toml"),
+            "{e}"
+        );
+        let e = load("[polcy]\nalpha = 1\n").unwrap_err().to_string();
+        assert!(e.contains("`polcy`") && e.contains("policy"), "{e}");
+        let e = load("profile = \"huge\"\n").unwrap_err().to_string();
+        assert!(e.contains("huge") && e.contains("quick"), "{e}");
+        let e = load("[policy]\ngamma = 1.5\n").unwrap_err().to_string();
+        assert!(e.contains("gamma") && e.contains("[0, 1)"), "{e}");
+        let e = load("[flights]\nmazes = [\"nowhere.maze\"]\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("flights.mazes") && e.contains("nowhere.maze"),
+            "{e}"
+        );
+        let e = load("[flights]\ndevice = \"jetson\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("flights.device") && e.contains("tx2-like"),
+            "{e}"
+        );
+        let e = load("[pareto]\nthreads = \"two\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("[pareto]"), "{e}");
+        let e = load("[data]\nwidth = 0\n").unwrap_err().to_string();
+        assert!(e.contains("[data]") && e.contains("frame size 0x270"), "{e}");
+    }
+
+    #[test]
+    fn tagged_values_replace_rather_than_merge() {
+        let cfg = load("[compress]\ncalibration = { method = \"min_max\" }\n").unwrap();
+        assert_eq!(
+            serde_json::to_value(cfg.compress.calibration).unwrap(),
+            serde_json::json!({ "method": "min_max" })
+        );
+    }
+}
