@@ -173,6 +173,8 @@ struct GridPoint {
 /// What `frugal features grid` writes to grid.json.
 #[derive(Debug, serde::Serialize)]
 struct GridReport {
+    /// The model scored (trained by this command when `train_frames > 0`).
+    model: PathBuf,
     split: String,
     frames: usize,
     train_frames: usize,
@@ -392,8 +394,8 @@ fn grid_cmd(a: GridArgs) -> anyhow::Result<()> {
     }
     let (ds, frames) = load(&a.frames, split, 12)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let (model, train_frames, train_seconds) = match &a.model {
-        Some(m) => (FeatureModel::load(&model_path(m))?, 0, 0.0),
+    let (model, model_file, train_frames, train_seconds) = match &a.model {
+        Some(m) => (FeatureModel::load(&model_path(m))?, model_path(m), 0, 0.0),
         None => {
             let train = load_frames(
                 &ds,
@@ -407,13 +409,14 @@ fn grid_cmd(a: GridArgs) -> anyhow::Result<()> {
             let t = Instant::now();
             let model = train_model(&ds, &train, &params, a.mining_rounds, a.quiet)?;
             let secs = t.elapsed().as_secs_f64();
-            model.save(&a.out.join("model.json"))?;
+            let file = a.out.join("model.json");
+            model.save(&file)?;
             println!(
                 "trained {} HoG configuration(s) on {} frames in {secs:.1} s",
                 model.hogs.len(),
                 train.len()
             );
-            (model, train.len(), secs)
+            (model, file, train.len(), secs)
         }
     };
     let threshold = a.threshold.unwrap_or(model.thresholds.ge);
@@ -513,6 +516,7 @@ fn grid_cmd(a: GridArgs) -> anyhow::Result<()> {
     }
     frugal_data::dataset::write_atomic(&a.out.join("grid.csv"), csv.as_bytes())?;
     let report = GridReport {
+        model: model_file,
         split: a.split.clone(),
         frames: frames.len(),
         train_frames,
