@@ -36,6 +36,10 @@ pub struct GenConfig {
     pub test_per_combo: u32,
     /// Frames per video.
     pub frames_per_video: u32,
+    /// Frames per *training* video, when different: many short training clips show
+    /// the detector many more distinct signs for the same number of frames, while
+    /// validation and test videos stay long enough for the tracker and the policy.
+    pub train_frames_per_video: Option<u32>,
     /// At most this many signs are in view at once (1..=3).
     pub max_signs: u32,
     /// Fraction of videos' time with no sign in view (approach gaps), 0..1.
@@ -65,6 +69,7 @@ impl Default for GenConfig {
             val_per_combo: 1,
             test_per_combo: 2,
             frames_per_video: 60,
+            train_frames_per_video: None,
             max_signs: 3,
             empty_fraction: 0.1,
             min_sign_px: 14.0,
@@ -87,6 +92,10 @@ pub struct VideoPlan {
     pub light: Light,
     /// Split the video belongs to.
     pub split: Split,
+    /// Frames in the video.
+    pub frames: u32,
+    /// Id of its first frame (frame ids run on over videos in id order).
+    pub first_frame: u64,
 }
 
 impl GenConfig {
@@ -161,8 +170,8 @@ impl GenConfig {
                 self.videos_per_combo, self.val_per_combo, self.test_per_combo
             ));
         }
-        if self.frames_per_video == 0 {
-            return fail("frames_per_video must be at least 1".into());
+        if self.frames_per_video == 0 || self.train_frames_per_video == Some(0) {
+            return fail("frames_per_video and train_frames_per_video must be at least 1".into());
         }
         if !(1..=3).contains(&self.max_signs) {
             return fail(format!("max_signs ({}) must be 1, 2 or 3", self.max_signs));
@@ -209,11 +218,22 @@ impl GenConfig {
                     } else {
                         Split::Test
                     };
+                    let frames = match split {
+                        Split::Train => {
+                            self.train_frames_per_video.unwrap_or(self.frames_per_video)
+                        }
+                        _ => self.frames_per_video,
+                    };
+                    let first_frame = plan
+                        .last()
+                        .map_or(0, |p: &VideoPlan| p.first_frame + u64::from(p.frames));
                     plan.push(VideoPlan {
                         id: plan.len() as u32,
                         clutter,
                         light,
                         split,
+                        frames,
+                        first_frame,
                     });
                 }
             }
@@ -223,7 +243,7 @@ impl GenConfig {
 
     /// Total number of frames this config generates.
     pub fn total_frames(&self) -> u64 {
-        self.video_plan().len() as u64 * u64::from(self.frames_per_video)
+        self.video_plan().iter().map(|p| u64::from(p.frames)).sum()
     }
 
     /// A hex SHA-256 of the generator version and the config's JSON form: two datasets
@@ -286,6 +306,32 @@ mod tests {
                 assert_eq!(combos.len(), 6);
             }
         }
+    }
+
+    #[test]
+    fn training_videos_can_be_shorter_and_frame_ids_stay_consecutive() {
+        let c = GenConfig {
+            videos_per_combo: 4,
+            val_per_combo: 1,
+            test_per_combo: 1,
+            frames_per_video: 10,
+            train_frames_per_video: Some(3),
+            ..GenConfig::default()
+        };
+        let plan = c.video_plan();
+        let mut next = 0;
+        for p in &plan {
+            assert_eq!(p.first_frame, next, "video {}", p.id);
+            assert_eq!(p.frames, if p.split == Split::Train { 3 } else { 10 });
+            next += u64::from(p.frames);
+        }
+        assert_eq!(c.total_frames(), next);
+        assert_eq!(next, 6 * (2 * 3 + 2 * 10));
+        let zero = GenConfig {
+            train_frames_per_video: Some(0),
+            ..c
+        };
+        assert!(zero.validate(Path::new("z.toml")).is_err());
     }
 
     #[test]

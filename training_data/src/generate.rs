@@ -43,15 +43,15 @@ fn render_video(
     let video = Video::new(config, plan, seed);
     let vdir = dir.join(format!("frames/v{:04}", plan.id));
     std::fs::create_dir_all(&vdir).map_err(|e| DataError::io(&vdir, e))?;
-    let mut frames = Vec::with_capacity(config.frames_per_video as usize);
-    for index in 0..config.frames_per_video {
+    let mut frames = Vec::with_capacity(plan.frames as usize);
+    for index in 0..plan.frames {
         let f = video.frame(index, &RenderOptions::default());
         let file = frame_file(plan.id, index);
         let path = dir.join(&file);
         let bytes = encode_png(&f.rgb, &path)?;
         std::fs::write(&path, bytes).map_err(|e| DataError::io(&path, e))?;
         frames.push(FrameRecord {
-            id: u64::from(plan.id) * u64::from(config.frames_per_video) + u64::from(index),
+            id: plan.first_frame + u64::from(index),
             file,
             width: config.width,
             height: config.height,
@@ -68,7 +68,7 @@ fn render_video(
         clutter: plan.clutter,
         light: plan.light,
         split: plan.split,
-        frames: config.frames_per_video,
+        frames: plan.frames,
     };
     Ok((meta, frames))
 }

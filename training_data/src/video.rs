@@ -104,7 +104,7 @@ impl Video {
         let ww = (wf * 1.7).ceil() as usize;
         let wh = (hf * 1.5).ceil() as usize;
         let world = draw_world(&mut rng, ww, wh, plan.clutter);
-        let t = config.frames_per_video.max(1) as f32;
+        let t = plan.frames.max(1) as f32;
 
         let (xmin, xmax) = (wf * 0.5 + 2.0, ww as f32 - wf * 0.5 - 2.0);
         let (ymin, ymax) = (hf * 0.5 + 2.0, wh as f32 - hf * 0.5 - 2.0);
@@ -120,7 +120,7 @@ impl Video {
                 rng.random_range(0.0..std::f32::consts::TAU),
             )
         });
-        let jitter = (0..config.frames_per_video)
+        let jitter = (0..plan.frames)
             .map(|_| {
                 (
                     rng.random_range(-0.5..0.5) * amp,
@@ -206,7 +206,7 @@ impl Video {
         Video {
             width: w,
             height: h,
-            frames: config.frames_per_video,
+            frames: plan.frames,
             seed,
             world,
             cam0: (cx0, cy0),
@@ -522,6 +522,8 @@ mod tests {
             clutter,
             light,
             split: Split::Train,
+            frames: single_sign_config().frames_per_video,
+            first_frame: 0,
         }
     }
 
@@ -716,6 +718,8 @@ mod arrow_tests {
                 clutter: Clutter::Low,
                 light: Light::Normal,
                 split: Split::Train,
+                frames: config.frames_per_video,
+                first_frame: 0,
             };
             let v = Video::new(&config, &plan, u64::from(id) + 100);
             for index in 0..config.frames_per_video {
