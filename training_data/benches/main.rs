@@ -12,6 +12,8 @@ fn plan() -> VideoPlan {
         clutter: Clutter::High,
         light: Light::Low,
         split: Split::Train,
+        frames: GenConfig::default().frames_per_video,
+        first_frame: 0,
     }
 }
 
