@@ -1,9 +1,10 @@
 //! The figures, each written as PNG and SVG (through a temporary name, then renamed):
-//! the α sweep, grouped bars per scenario (time and F1), per-variant reward / IoU /
+//! the α sweep, grouped bars per scenario (time and F1) and per sign class (precision
+//! and time), per-variant reward / IoU /
 //! time on one clip, and the MDP's state over a clip with detect/track marks.
 
 use crate::error::{PolicyError, Result};
-use crate::eval::{FrameTrace, Score};
+use crate::eval::{ClassScore, FrameTrace, Score};
 use crate::sweep::SweepPoint;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -128,46 +129,46 @@ pub fn plot_sweep(stem: &Path, pts: &[SweepPoint]) -> Result<()> {
     })
 }
 
+/// One bar: the group on the x axis, the series (its colour), the value.
+type Bar<'a> = (&'a str, &'a str, f64);
+
 fn bars_draw<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
-    scores: &[Score],
+    bars: &[Bar<'_>],
+    caption: &str,
     metric: &str,
-    value: fn(&Score) -> f64,
 ) -> std::result::Result<(), String> {
     root.fill(&WHITE).map_err(s)?;
-    let mut scen: Vec<&str> = Vec::new();
-    let mut strat: Vec<&str> = Vec::new();
-    for sc in scores {
-        if !scen.contains(&sc.scenario.as_str()) {
-            scen.push(&sc.scenario);
+    let mut groups: Vec<&str> = Vec::new();
+    let mut series: Vec<&str> = Vec::new();
+    for &(g, sr, _) in bars {
+        if !groups.contains(&g) {
+            groups.push(g);
         }
-        if !strat.contains(&sc.strategy.as_str()) {
-            strat.push(&sc.strategy);
+        if !series.contains(&sr) {
+            series.push(sr);
         }
     }
-    let ymax = scores
+    let ymax = bars
         .iter()
-        .map(value)
+        .map(|b| b.2)
         .filter(|v| v.is_finite())
         .fold(0.0, f64::max)
-        * 1.15
+        * 1.35
         + 1e-9;
-    let n = strat.len().max(1) as f64;
+    let n = series.len().max(1) as f64;
     let mut chart = ChartBuilder::on(root)
-        .caption(
-            format!("{metric} per scenario and strategy"),
-            ("sans-serif", 22),
-        )
+        .caption(caption, ("sans-serif", 22))
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(60)
-        .build_cartesian_2d(0.0..scen.len() as f64, 0.0..ymax)
+        .build_cartesian_2d(0.0..groups.len() as f64, 0.0..ymax)
         .map_err(s)?;
-    let names = scen.clone();
+    let names = groups.clone();
     chart
         .configure_mesh()
         .disable_x_mesh()
-        .x_labels(scen.len() * 2 + 1)
+        .x_labels(groups.len() * 2 + 1)
         .x_label_formatter(&|x| {
             let i = x.floor() as usize;
             if (x - i as f64 - 0.5).abs() < 0.01 {
@@ -179,32 +180,23 @@ fn bars_draw<DB: DrawingBackend>(
         .y_desc(metric)
         .draw()
         .map_err(s)?;
-    for (k, st) in strat.iter().enumerate() {
+    for (k, sr) in series.iter().enumerate() {
         let color = Palette99::pick(k).to_rgba();
-        let rects: Vec<Rectangle<(f64, f64)>> = scen
+        let rects: Vec<Rectangle<(f64, f64)>> = groups
             .iter()
             .enumerate()
-            .filter_map(|(i, sc)| {
-                scores
-                    .iter()
-                    .find(|x| x.scenario == *sc && x.strategy == *st)
-                    .map(|x| {
-                        let x0 = i as f64 + 0.1 + 0.8 * k as f64 / n;
-                        let v = value(x);
-                        Rectangle::new(
-                            [
-                                (x0, 0.0),
-                                (x0 + 0.8 / n, if v.is_finite() { v } else { 0.0 }),
-                            ],
-                            color.filled(),
-                        )
-                    })
+            .filter_map(|(i, g)| {
+                bars.iter().find(|b| b.0 == *g && b.1 == *sr).map(|b| {
+                    let x0 = i as f64 + 0.1 + 0.8 * k as f64 / n;
+                    let v = if b.2.is_finite() { b.2 } else { 0.0 };
+                    Rectangle::new([(x0, 0.0), (x0 + 0.8 / n, v)], color.filled())
+                })
             })
             .collect();
         chart
             .draw_series(rects)
             .map_err(s)?
-            .label(*st)
+            .label(*sr)
             .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 12, y + 5)], color.filled()));
     }
     chart
@@ -217,27 +209,78 @@ fn bars_draw<DB: DrawingBackend>(
     Ok(())
 }
 
-/// Grouped bars per scenario: compute time per frame (`<stem>-time`) and F1 (`<stem>-f1`).
-pub fn plot_bars(stem: &Path, scores: &[Score]) -> Result<()> {
+/// Write `stem.png|svg` with grouped bars.
+fn bars(
+    stem: &Path,
+    size: (u32, u32),
+    bars: &[Bar<'_>],
+    caption: &str,
+    metric: &str,
+) -> Result<()> {
+    both(stem, size, &|r| bars_draw(r, bars, caption, metric), &|r| {
+        bars_draw(r, bars, caption, metric)
+    })
+}
+
+/// `<stem>-<suffix>` next to `stem`.
+fn suffixed(stem: &Path, suffix: &str) -> std::path::PathBuf {
     let name = stem
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    let t = stem.with_file_name(format!("{name}-time"));
-    let f = stem.with_file_name(format!("{name}-f1"));
-    let time: fn(&Score) -> f64 = |x| x.ms_per_frame;
-    let f1: fn(&Score) -> f64 = |x| x.f1;
-    both(
-        &t,
+    stem.with_file_name(format!("{name}-{suffix}"))
+}
+
+/// Grouped bars per scenario: compute time per frame (`<stem>-time`) and F1 (`<stem>-f1`).
+pub fn plot_bars(stem: &Path, scores: &[Score]) -> Result<()> {
+    let of = |value: fn(&Score) -> f64| -> Vec<Bar<'_>> {
+        scores
+            .iter()
+            .map(|x| (x.scenario.as_str(), x.strategy.as_str(), value(x)))
+            .collect()
+    };
+    let metric = "compute ms per frame";
+    bars(
+        &suffixed(stem, "time"),
         (1000, 560),
-        &|r| bars_draw(r, scores, "compute ms per frame", time),
-        &|r| bars_draw(r, scores, "compute ms per frame", time),
+        &of(|x| x.ms_per_frame),
+        &format!("{metric} per scenario and strategy"),
+        metric,
     )?;
-    both(
-        &f,
+    let metric = "F1 @ IoU 0.5";
+    bars(
+        &suffixed(stem, "f1"),
         (1000, 560),
-        &|r| bars_draw(r, scores, "F1 @ IoU 0.5", f1),
-        &|r| bars_draw(r, scores, "F1 @ IoU 0.5", f1),
+        &of(|x| x.f1),
+        &format!("{metric} per scenario and strategy"),
+        metric,
+    )
+}
+
+/// Grouped bars per sign class (the KUL table as figures) for the given strategies:
+/// precision (`<stem>-precision`) and compute time per frame showing the class
+/// (`<stem>-time`).
+pub fn plot_class_bars(stem: &Path, rows: &[ClassScore], strategies: &[&str]) -> Result<()> {
+    let of = |value: fn(&ClassScore) -> f64| -> Vec<Bar<'_>> {
+        rows.iter()
+            .filter(|r| strategies.contains(&r.strategy.as_str()))
+            .map(|r| (r.name.as_str(), r.strategy.as_str(), value(r)))
+            .collect()
+    };
+    let metric = "precision @ IoU 0.5";
+    bars(
+        &suffixed(stem, "precision"),
+        (1300, 560),
+        &of(|r| r.precision.unwrap_or(f64::NAN)),
+        &format!("{metric} per sign class"),
+        metric,
+    )?;
+    bars(
+        &suffixed(stem, "time"),
+        (1300, 560),
+        &of(|r| r.ms_per_frame),
+        "compute time of the frames showing each sign class",
+        "compute ms per frame",
     )
 }
 

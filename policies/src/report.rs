@@ -4,7 +4,7 @@ use crate::error::{PolicyError, Result};
 use crate::eval::{
     ClassScore, EvalConfig, EvalReport, Runs, Score, Strategy, class_scores, run_all, scores,
 };
-use crate::plot::{ClipSeries, plot_bars, plot_clip, plot_states, plot_sweep};
+use crate::plot::{ClipSeries, plot_bars, plot_class_bars, plot_clip, plot_states, plot_sweep};
 use crate::replay::{Frames, ReplayLog, VideoLog};
 use crate::sweep::{SweepPoint, sweep};
 use crate::train::{PolicyConfig, TrainedPolicy, Weights, train};
@@ -335,9 +335,10 @@ pub fn kul_table(rows: &[ClassScore], base: Strategy, other: Strategy) -> String
 }
 
 /// Per-class scores of every strategy in `runs`, written as `per_class.json`,
-/// `per_class.csv` and `kul.md` (the KUL table of static vs MDP and of static vs
-/// MDP + tracker, where those strategies were run) into `out`. `names` are the class
-/// names in id order.
+/// `per_class.csv`, `kul.md` (the KUL table of static vs MDP and of static vs
+/// MDP + tracker, where those strategies were run) and the bar charts
+/// `per_class-precision|time.png|svg` of those three strategies into `out`. `names`
+/// are the class names in id order.
 pub fn write_per_class(
     log: &ReplayLog,
     runs: &Runs,
@@ -353,6 +354,8 @@ pub fn write_per_class(
         .get(runs.static_variant)
         .map_or("?", |v| v.name.as_str());
     write_text(&out.join("kul.md"), &kul_tables(runs, &rows, static_name))?;
+    let shown = [Strategy::Static, Strategy::Mdp, Strategy::MdpTracker].map(Strategy::name);
+    plot_class_bars(&out.join("per_class"), &rows, &shown)?;
     Ok(rows)
 }
 

@@ -163,6 +163,12 @@ fn per_class_counts_sum_to_the_overall_counts() {
     write_per_class(&log, &runs, &cfg, &names, dir.path()).unwrap();
     let csv = std::fs::read_to_string(dir.path().join("per_class.csv")).unwrap();
     assert_eq!(csv.lines().count(), 1 + rows.len());
+    for f in ["per_class-precision", "per_class-time"] {
+        for ext in ["png", "svg"] {
+            let path = dir.path().join(format!("{f}.{ext}"));
+            assert!(path.metadata().is_ok_and(|m| m.len() > 100), "{path:?}");
+        }
+    }
     let kul = std::fs::read_to_string(dir.path().join("kul.md")).unwrap();
     assert!(
         kul.contains("| one |") && kul.contains("| **all** |"),
