@@ -1,12 +1,19 @@
 //! `frugal features train|eval|proposals` on the tiny data profile.
 use super::{frugal, json, p, tiny_dataset};
+use std::path::PathBuf;
 
-#[test]
-fn train_eval_and_proposal_recall_on_the_tiny_profile() {
+/// A temporary folder with the tiny dataset in `data/`, and the output folder `name/`.
+fn tiny(name: &str) -> (tempfile::TempDir, PathBuf, PathBuf) {
     let tmp = tempfile::tempdir().expect("tempdir");
     let data = tmp.path().join("data");
     tiny_dataset(&data);
-    let out = tmp.path().join("hog");
+    let out = tmp.path().join(name);
+    (tmp, data, out)
+}
+
+#[test]
+fn train_eval_and_proposal_recall_on_the_tiny_profile() {
+    let (tmp, data, out) = tiny("hog");
     frugal(&[
         "features",
         "train",
@@ -120,33 +127,39 @@ fn bad_inputs_are_one_line_errors() {
 
 #[test]
 fn grid_front_holds_no_dominated_tuple() {
-    let tmp = tempfile::tempdir().expect("tempdir");
-    let data = tmp.path().join("data");
-    tiny_dataset(&data);
-    let out = tmp.path().join("grid");
-    frugal(&[
-        "features",
-        "grid",
-        "--data",
-        p(&data),
-        "--out",
-        p(&out),
-        "--split",
+    let (_tmp, data, out) = tiny("grid");
+    let grid = |split: &str, extra: &[&str]| {
+        let mut args = vec![
+            "features",
+            "grid",
+            "--data",
+            p(&data),
+            "--out",
+            p(&out),
+            "--split",
+            split,
+        ];
+        args.extend_from_slice(extra);
+        frugal(&args)
+    };
+    grid(
         "val",
-        "--stride",
-        "1",
-        "--train-stride",
-        "1",
-        "--proposals",
-        "20,100",
-        "--blocks",
-        "1,2",
-        "--cells",
-        "8",
-        "--bins",
-        "6,9",
-        "--quiet",
-    ])
+        &[
+            "--stride",
+            "1",
+            "--train-stride",
+            "1",
+            "--proposals",
+            "20,100",
+            "--blocks",
+            "1,2",
+            "--cells",
+            "8",
+            "--bins",
+            "6,9",
+            "--quiet",
+        ],
+    )
     .expect("grid");
     for f in [
         "model.json",
@@ -187,16 +200,6 @@ fn grid_front_holds_no_dominated_tuple() {
     let csv = std::fs::read_to_string(out.join("grid.csv")).expect("csv");
     assert_eq!(csv.lines().count(), 1 + points.len());
     // The train split is refused: the grid is scored on held-out frames only.
-    let err = frugal(&[
-        "features",
-        "grid",
-        "--data",
-        p(&data),
-        "--out",
-        p(&out),
-        "--split",
-        "train",
-    ])
-    .unwrap_err();
+    let err = grid("train", &[]).unwrap_err();
     assert!(err.contains("held-out"), "{err}");
 }

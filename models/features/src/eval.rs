@@ -114,28 +114,23 @@ pub fn evaluate(
     threshold: f32,
     iou: f32,
 ) -> Result<EvalReport> {
-    let det = model.detector(params)?;
-    let mut per_class = vec![ClassCounts::default(); model.classes.len()];
-    let mut secs = 0.0;
-    for f in frames {
-        let img = f.view()?;
-        let t = Instant::now();
-        let dets = det.detect_all(&img)?;
-        secs += t.elapsed().as_secs_f64();
-        match_frame(&dets, &f.objects, threshold, iou, &mut per_class);
-    }
-    Ok(EvalReport {
-        params: params.to_string(),
-        score_threshold: threshold,
+    let mut per_class = [vec![ClassCounts::default(); model.classes.len()]];
+    let mut secs = [0.0];
+    let det = [model.detector(params)?];
+    let mut acc = Tally {
+        per_class: &mut per_class,
+        secs: &mut secs,
+    };
+    run_variants(model, &det, frames, threshold, iou, &mut acc, &|_, _| {})?;
+    let ([per_class], [secs]) = (per_class, secs);
+    Ok(report(
+        params,
+        threshold,
         iou,
-        frames: frames.len(),
+        frames.len(),
         per_class,
-        mean_ms: if frames.is_empty() {
-            0.0
-        } else {
-            1e3 * secs / frames.len() as f64
-        },
-    })
+        secs,
+    ))
 }
 
 /// Run many variants of one model over `frames`, sharing each frame's proposals: they
@@ -157,19 +152,52 @@ pub fn evaluate_many(
         .iter()
         .map(|&p| model.detector(p))
         .collect::<Result<Vec<_>>>()?;
-    let max = variants
-        .iter()
-        .map(|p| p.proposals as usize)
-        .max()
-        .unwrap_or(0);
     let mut per_class = vec![vec![ClassCounts::default(); model.classes.len()]; variants.len()];
     let mut secs = vec![0.0f64; variants.len()];
+    let mut acc = Tally {
+        per_class: &mut per_class,
+        secs: &mut secs,
+    };
+    run_variants(model, &dets, frames, threshold, iou, &mut acc, progress)?;
+    Ok(variants
+        .iter()
+        .zip(per_class)
+        .zip(secs)
+        .map(|((p, per_class), s)| report(*p, threshold, iou, frames.len(), per_class, s))
+        .collect())
+}
+
+/// Per-variant counts and detection seconds, filled by [`run_variants`].
+struct Tally<'a> {
+    per_class: &'a mut [Vec<ClassCounts>],
+    secs: &'a mut [f64],
+}
+
+/// The frame loop of [`evaluate`] and [`evaluate_many`].
+fn run_variants(
+    model: &FeatureModel,
+    dets: &[crate::model::HogDetector<'_>],
+    frames: &[LabeledFrame],
+    threshold: f32,
+    iou: f32,
+    acc: &mut Tally<'_>,
+    progress: &dyn Fn(usize, usize),
+) -> Result<()> {
+    let max = dets
+        .iter()
+        .map(|d| d.params().proposals as usize)
+        .max()
+        .unwrap_or(0);
     for (i, f) in frames.iter().enumerate() {
         let img = f.view()?;
         let t = Instant::now();
         let props = model.proposals(&img, max)?;
         let shared = t.elapsed().as_secs_f64();
-        for ((det, counts), s) in dets.iter().zip(&mut per_class).zip(&mut secs) {
+        for ((det, counts), s) in dets
+            .iter()
+            .zip(acc.per_class.iter_mut())
+            .zip(acc.secs.iter_mut())
+        {
             let t = Instant::now();
             let found = det.detect_proposals(&img, &props);
             *s += shared + t.elapsed().as_secs_f64();
@@ -177,23 +205,29 @@ pub fn evaluate_many(
         }
         progress(i + 1, frames.len());
     }
-    Ok(variants
-        .iter()
-        .zip(per_class)
-        .zip(secs)
-        .map(|((p, per_class), s)| EvalReport {
-            params: p.to_string(),
-            score_threshold: threshold,
-            iou,
-            frames: frames.len(),
-            per_class,
-            mean_ms: if frames.is_empty() {
-                0.0
-            } else {
-                1e3 * s / frames.len() as f64
-            },
-        })
-        .collect())
+    Ok(())
+}
+
+fn report(
+    params: HogParams,
+    threshold: f32,
+    iou: f32,
+    frames: usize,
+    per_class: Vec<ClassCounts>,
+    secs: f64,
+) -> EvalReport {
+    EvalReport {
+        params: params.to_string(),
+        score_threshold: threshold,
+        iou,
+        frames,
+        per_class,
+        mean_ms: if frames == 0 {
+            0.0
+        } else {
+            1e3 * secs / frames as f64
+        },
+    }
 }
 
 /// Proposal recall at IoU `iou` for each proposal count: `(count, recall)`, plus the
