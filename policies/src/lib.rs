@@ -2,6 +2,7 @@
 //! replayed videos, evaluated by replaying the paper's strategies through the
 //! runtime's own controller, and shipped as a policy bundle.
 //!
+//! - [`calibrate`]: per-variant bucket edges of equal precision (for the CNN family);
 //! - [`variants`]: the [`VariantSet`] (families, confidence buckets, latencies,
 //!   relative costs, boxed detectors);
 //! - [`replay`]: the [`ReplayLog`] — every variant run once on every frame;
@@ -54,6 +55,7 @@
 #![deny(missing_docs)]
 
 pub mod bundle;
+pub mod calibrate;
 pub mod error;
 pub mod eval;
 pub mod mdp;

@@ -38,6 +38,10 @@ enum PolicyCommand {
     /// detectors) and optionally `families = [{ name,
     /// buckets = { c_opt, c_ge, c_ua, t_c } }]` to override the default buckets.
     Record(RecordArgs),
+    /// Give every variant of a log its own confidence buckets, of equal precision on
+    /// the log's training videos (for families whose scores are not comparable across
+    /// variants, like the CNN's); writes the calibrated log and calibration.json.
+    Calibrate(CalibrateArgs),
     /// Estimate the MDP from the log's training videos, solve it (value iteration,
     /// cross-checked by policy iteration), sweep α, write policy.json and the sweep plot.
     Train(TrainArgs),
@@ -71,12 +75,31 @@ struct RecordArgs {
     /// Keep at most this many videos per (split, clutter, light) combination.
     #[arg(long)]
     per_combo: Option<usize>,
+    /// The dataset split whose videos the policy learns from (they are the log's
+    /// `train` videos): `val` keeps the MDP's statistics off the videos the detector
+    /// itself was trained on, where every variant looks better than it is.
+    #[arg(long, default_value = "train", value_parser = crate::data::parse_split)]
+    train_split: Split,
     /// Frames to time a variant on when the variants file gives no latency.
     #[arg(long, default_value_t = 15)]
     time_frames: usize,
     /// Hide the progress bar.
     #[arg(long)]
     quiet: bool,
+}
+
+/// Options of `frugal policy calibrate`.
+#[derive(Args, Debug)]
+struct CalibrateArgs {
+    /// The replay log.
+    #[arg(long)]
+    log: PathBuf,
+    /// The calibrated log (may be the same file).
+    #[arg(long)]
+    out: PathBuf,
+    /// Training frames that must back a bucket edge.
+    #[arg(long, default_value_t = 20)]
+    min_samples: usize,
 }
 
 /// Options of `frugal policy train`.
@@ -214,7 +237,18 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
             let file = VariantsFile::read(&a.variants)?;
             let mut models = HashMap::new();
             let frames = DatasetFrames::new(&ds);
+            if a.train_split != Split::Train && a.splits.contains(&Split::Train) {
+                anyhow::bail!(
+                    "--train-split {} takes the place of the train split: leave train out of --splits",
+                    a.train_split.name()
+                );
+            }
             let mut videos = frames.skeleton(&a.splits);
+            for v in &mut videos {
+                if v.split == a.train_split {
+                    v.split = Split::Train;
+                }
+            }
             if let Some(k) = a.per_combo {
                 let mut seen: HashMap<(Split, String, String), usize> = HashMap::new();
                 videos.retain(|v| {
@@ -259,6 +293,48 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
                 log.videos.len(),
                 a.out.display()
             );
+            Ok(())
+        }
+        PolicyCommand::Calibrate(a) => {
+            let mut log = ReplayLog::load(&a.log)?;
+            let cal = frugal_policies::calibrate::calibrate(&mut log, a.min_samples).with_context(
+                || {
+                    format!(
+                        "{}: no training video with detections to calibrate on",
+                        a.log.display()
+                    )
+                },
+            )?;
+            log.save(&a.out)?;
+            let json_path = a.out.with_file_name("calibration.json");
+            frugal_data::dataset::write_json_atomic(&json_path, &cal)?;
+            println!(
+                "reference {}: precision {:.3} / {:.3} / {:.3} at its c_opt / c_ge / c_ua",
+                cal.reference, cal.targets[0], cal.targets[1], cal.targets[2]
+            );
+            let show = |x: f32| {
+                if x == frugal_policies::calibrate::UNREACHABLE {
+                    "never".to_string()
+                } else {
+                    format!("{x:.3}")
+                }
+            };
+            println!(
+                "{:<16} {:>7} {:>9} {:>8} {:>8} {:>8}",
+                "variant", "frames", "precision", "c_opt", "c_ge", "c_ua"
+            );
+            for v in &cal.variants {
+                println!(
+                    "{:<16} {:>7} {:>9.3} {:>8} {:>8} {:>8}",
+                    v.variant,
+                    v.samples,
+                    v.precision,
+                    show(v.after.c_opt),
+                    show(v.after.c_ge),
+                    show(v.after.c_ua)
+                );
+            }
+            println!("wrote {} and {}", a.out.display(), json_path.display());
             Ok(())
         }
         PolicyCommand::Train(a) => {

@@ -54,6 +54,13 @@ pub struct ReplaySettings {
     pub threads: usize,
     /// Detections kept per frame and variant.
     pub max_detections: usize,
+    /// The dataset split the policy learns from (`val`: videos the detector was not
+    /// trained on; `train` biases every variant's statistics upwards).
+    pub train_split: String,
+    /// Give every variant its own buckets of equal precision (`frugal policy calibrate`).
+    pub calibrate: bool,
+    /// Frames that must back a calibrated bucket edge.
+    pub calibrate_min_samples: usize,
 }
 
 /// `frugal fly` settings: static (the most accurate variant) against adaptive (the
@@ -204,6 +211,14 @@ impl RunConfig {
             |text: &str| toml::from_str::<DetectorConfig>(text).context("built-in detector");
         let mut detector = DetectorConfig::default();
         detector.train.threads = 1;
+        let replay = ReplaySettings {
+            per_combo: 0,
+            threads: 1,
+            max_detections: frugal_policies::replay::DEFAULT_MAX_DETECTIONS,
+            train_split: "val".into(),
+            calibrate: true,
+            calibrate_min_samples: 20,
+        };
         let default_flights = FlightSettings {
             mazes: vec!["easy".into(), "medium".into(), "hard".into()],
             seeds: 2,
@@ -227,11 +242,7 @@ impl RunConfig {
                     warmup: 3,
                     threshold: 0.5,
                 },
-                replay: ReplaySettings {
-                    per_combo: 3,
-                    threads: 1,
-                    max_detections: frugal_policies::replay::DEFAULT_MAX_DETECTIONS,
-                },
+                replay: replay.clone(),
                 policy: PolicyConfig::default(),
                 evaluation: EvalConfig::default(),
                 flights: default_flights,
@@ -247,11 +258,7 @@ impl RunConfig {
                     warmup: 2,
                     threshold: 0.5,
                 },
-                replay: ReplaySettings {
-                    per_combo: 0,
-                    threads: 1,
-                    max_detections: frugal_policies::replay::DEFAULT_MAX_DETECTIONS,
-                },
+                replay: replay.clone(),
                 policy: PolicyConfig::default(),
                 evaluation: EvalConfig::default(),
                 flights: FlightSettings {
@@ -276,9 +283,8 @@ impl RunConfig {
                     threshold: 0.5,
                 },
                 replay: ReplaySettings {
-                    per_combo: 0,
-                    threads: 1,
-                    max_detections: frugal_policies::replay::DEFAULT_MAX_DETECTIONS,
+                    calibrate_min_samples: 2,
+                    ..replay
                 },
                 policy: PolicyConfig {
                     sweep_alpha: vec![0.0, 1.0],
@@ -338,18 +344,14 @@ impl RunConfig {
     /// Range checks of every section; `path` names the file in errors.
     pub fn check(&self, path: &Path) -> anyhow::Result<()> {
         let file = path.display().to_string();
-        self.data
-            .validate(path)
-            .context("in section [data]")?;
+        self.data.validate(path).context("in section [data]")?;
         self.detector
             .validate(&format!("{file} [detector]"))
             .map_err(anyhow::Error::from)?;
         self.compress
             .validate(&format!("{file} [compress]"))
             .map_err(anyhow::Error::from)?;
-        self.policy
-            .check(path)
-            .context("in section [policy]")?;
+        self.policy.check(path).context("in section [policy]")?;
         let bad = |key: &str, msg: String| anyhow::anyhow!("{file}: {key}: {msg}");
         let p = &self.pareto;
         if p.threads == 0 {
@@ -359,6 +361,15 @@ impl RunConfig {
             return Err(bad(
                 "pareto.threshold",
                 format!("{} is outside [0, 1]", p.threshold),
+            ));
+        }
+        if !matches!(self.replay.train_split.as_str(), "train" | "val") {
+            return Err(bad(
+                "replay.train_split",
+                format!(
+                    "`{}` is not allowed (allowed: train, val)",
+                    self.replay.train_split
+                ),
             ));
         }
         if self.replay.threads == 0 || self.replay.max_detections == 0 {
@@ -551,7 +562,10 @@ mod tests {
             .to_string();
         assert!(e.contains("[pareto]"), "{e}");
         let e = load("[data]\nwidth = 0\n").unwrap_err().to_string();
-        assert!(e.contains("[data]") && e.contains("frame size 0x270"), "{e}");
+        assert!(
+            e.contains("[data]") && e.contains("frame size 0x270"),
+            "{e}"
+        );
     }
 
     #[test]

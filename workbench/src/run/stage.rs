@@ -46,7 +46,7 @@ pub(crate) const STAGES: [StageDef; 9] = [
     StageDef {
         name: "replay",
         deps: &["pareto", "data"],
-        what: "every front variant on every frame of the training and test videos",
+        what: "every front variant on every frame of the policy's training videos (by default the validation split) and the test videos, calibrated",
     },
     StageDef {
         name: "policy",
@@ -427,6 +427,13 @@ impl Ctx {
                 c.pareto.threshold.to_string(),
             ]))?],
             "replay" => {
+                let r = &c.replay;
+                let log = arg(&out.join("replay.json"));
+                let splits = if r.train_split == "train" {
+                    "train,test"
+                } else {
+                    "val,test"
+                };
                 let mut a = vec![
                     s("policy"),
                     s("record"),
@@ -435,18 +442,33 @@ impl Ctx {
                     s("--variants"),
                     arg(&self.dir("pareto").join("variants.json")),
                     s("--out"),
-                    arg(&out.join("replay.json")),
+                    log.clone(),
                     s("--splits"),
-                    s("train,test"),
+                    s(splits),
+                    s("--train-split"),
+                    r.train_split.clone(),
                     s("--threads"),
-                    c.replay.threads.to_string(),
+                    r.threads.to_string(),
                     s("--max-detections"),
-                    c.replay.max_detections.to_string(),
+                    r.max_detections.to_string(),
                 ];
-                if c.replay.per_combo > 0 {
-                    a.extend([s("--per-combo"), c.replay.per_combo.to_string()]);
+                if r.per_combo > 0 {
+                    a.extend([s("--per-combo"), r.per_combo.to_string()]);
                 }
-                vec![self.frugal(&self.quiet(a))?]
+                let mut commands = vec![self.frugal(&self.quiet(a))?];
+                if r.calibrate {
+                    commands.push(self.frugal(&[
+                        s("policy"),
+                        s("calibrate"),
+                        s("--log"),
+                        log.clone(),
+                        s("--out"),
+                        log,
+                        s("--min-samples"),
+                        r.calibrate_min_samples.to_string(),
+                    ])?);
+                }
+                commands
             }
             "policy" => vec![self.frugal(&[
                 s("policy"),
