@@ -9,7 +9,8 @@
 //! * [`FeatureModel`] / [`HogDetector`] — the trained family and one variant of it,
 //!   which implements [`frugal_runtime::Detector`]; the score is the SVM margin,
 //!   bucketed by [`ScoreThresholds::PAPER`] (`c_opt = 0.9, c_ge = 0, c_ua = −0.5`);
-//! * [`eval`] — per-class precision / recall, time per frame, proposal recall.
+//! * [`eval`] — per-class precision / recall, time per frame (one variant, or many
+//!   sharing each frame's proposals: [`eval::evaluate_many`]), proposal recall.
 //!
 //! ```
 //! use frugal_features::{HogParams, hog::{HogConfig, hog}};
