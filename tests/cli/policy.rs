@@ -1,6 +1,6 @@
 //! `frugal policy record|train|eval` and `frugal bundle write|verify|inspect` on a tiny
 //! generated dataset with synthetic (ground-truth-derived) detector variants.
-use super::{frugal, p};
+use super::{frugal, json, p};
 
 const VARIANTS: &str = r#"
 [[variants]]
@@ -90,9 +90,33 @@ fn record_train_eval_and_bundle_on_a_tiny_dataset() {
         "bars-f1.svg",
         "clip.png",
         "states.svg",
+        "per_class.csv",
+        "per_class-precision.png",
+        "per_class-time.svg",
     ] {
         assert!(eval.join(f).is_file(), "{f}");
     }
+    // Per class: one row per class and strategy plus an all row per strategy, whose
+    // counts are the classes' sums.
+    let per_class = json(&eval.join("per_class.json"));
+    let rows = per_class.as_array().unwrap();
+    let classes = rows.iter().filter(|r| r["strategy"] == "mdp").count() - 1;
+    assert!(classes >= 1);
+    assert_eq!(rows.len(), 6 * (classes + 1));
+    for key in ["tp", "fp", "fn_"] {
+        let of = |all: bool| -> u64 {
+            rows.iter()
+                .filter(|r| r["strategy"] == "mdp" && r["class"].is_null() == all)
+                .map(|r| r[key].as_u64().unwrap())
+                .sum()
+        };
+        assert_eq!(of(false), of(true), "{key}");
+    }
+    let kul = std::fs::read_to_string(eval.join("kul.md")).unwrap();
+    assert!(
+        kul.contains("\"Good Enough\"") && kul.contains("| **all** |"),
+        "{kul}"
+    );
 
     let bundle = run.join("bundle");
     frugal(&[
