@@ -462,18 +462,18 @@ fn grid_cmd(a: GridArgs) -> anyhow::Result<()> {
         points[i].on_front = true;
     }
     let threads = std::env::var("RAYON_NUM_THREADS").unwrap_or_else(|_| "all cores".into());
+    // Label the front and the paper's baseline; the other points stay unlabelled.
+    let baseline = HogParams::BASELINE.to_string();
     let labelled: Vec<(String, frugal_pareto::Point)> = points
         .iter()
         .zip(&plane)
         .map(|(g, p)| {
-            (
-                if g.on_front {
-                    g.params.clone()
-                } else {
-                    String::new()
-                },
-                *p,
-            )
+            let label = match (g.on_front, g.params == baseline) {
+                (_, true) => format!("{} (baseline)", g.params),
+                (true, false) => g.params.clone(),
+                (false, false) => String::new(),
+            };
+            (label, *p)
         })
         .collect();
     let title = format!(
