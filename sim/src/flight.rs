@@ -55,6 +55,9 @@ pub struct NavConfig {
     pub time_limit_s: f64,
     /// The camera delivers at most this many frames per second.
     pub camera_fps: f64,
+    /// A sign makes the drone act only after the same action was read on this many
+    /// processed frames in a row (1: act on the first).
+    pub confirm_frames: u32,
 }
 
 impl Default for NavConfig {
@@ -76,6 +79,7 @@ impl Default for NavConfig {
             radius: 0.25,
             time_limit_s: 3600.0,
             camera_fps: 60.0,
+            confirm_frames: 2,
         }
     }
 }
@@ -369,6 +373,7 @@ pub fn fly(
     let mut wait_zone_until = f64::NEG_INFINITY;
     let mut wait_started = 0.0;
     let mut wait_s = 0.0;
+    let mut streak: Option<(NavAction, u32)> = None;
     let mut rgb = Vec::new();
     let mut track = vec![TrackPoint {
         t,
@@ -510,57 +515,70 @@ pub fn fly(
             }
             Mode::Cruise | Mode::HoldForPedestrian => {
                 mode = Mode::Cruise;
-                for (action, dist, centred) in percept.detections.iter().filter_map(|d| {
+                // the first detection this frame that would make the drone act …
+                let candidate = percept.detections.iter().find_map(|d| {
                     let action = Sign::from_id(d.class)?.action()?;
                     let dist = f_px * maze.sign_size / f64::from(d.bbox.height()).max(1e-3);
                     let (cx, _) = d.bbox.center();
                     let centred = (f64::from(cx) - f64::from(cam.width) / 2.0).abs()
                         <= nav.centre_band * f64::from(cam.width);
-                    Some((action, dist, centred))
-                }) {
-                    match action {
-                        NavAction::Stop if centred && dist <= land_distance => {
-                            landed = true;
-                            events.push(Event {
-                                t,
-                                x: pose.x,
-                                y: pose.y,
-                                what: format!("land at STOP (estimated {dist:.2} m)"),
-                            });
-                            break;
+                    let acts = match action {
+                        NavAction::Stop => centred && dist <= land_distance,
+                        NavAction::TurnLeft | NavAction::TurnRight => {
+                            centred && dist <= turn_distance && odo >= turn_armed_at
                         }
-                        NavAction::TurnLeft | NavAction::TurnRight
-                            if centred && dist <= turn_distance && odo >= turn_armed_at =>
-                        {
-                            let left = action == NavAction::TurnLeft;
-                            target_yaw = wrap(pose.yaw + if left { -FRAC_PI_2 } else { FRAC_PI_2 });
-                            // Snap to the grid axes so turns do not accumulate error.
-                            target_yaw = wrap((target_yaw / FRAC_PI_2).round() * FRAC_PI_2);
-                            mode = Mode::Turning;
-                            events.push(Event {
-                                t,
-                                x: pose.x,
-                                y: pose.y,
-                                what: format!(
-                                    "turn {} (estimated {dist:.2} m)",
-                                    if left { "left" } else { "right" }
-                                ),
-                            });
-                            break;
-                        }
-                        NavAction::Wait if dist <= nav.wait_distance && odo >= wait_zone_until => {
-                            mode = Mode::Waiting;
-                            wait_started = t;
-                            events.push(Event {
-                                t,
-                                x: pose.x,
-                                y: pose.y,
-                                what: format!("stop at WAIT (estimated {dist:.2} m)"),
-                            });
-                            break;
-                        }
-                        _ => {}
+                        NavAction::Wait => dist <= nav.wait_distance && odo >= wait_zone_until,
+                    };
+                    acts.then_some((action, dist))
+                });
+                // … acts only once the same action was seen on `confirm_frames`
+                // processed frames in a row, so one misread sign does not steer the drone
+                streak = match (candidate, streak) {
+                    (Some((a, _)), Some((b, n))) if a == b => Some((a, n + 1)),
+                    (Some((a, _)), _) => Some((a, 1)),
+                    (None, _) => None,
+                };
+                let confirmed = candidate
+                    .filter(|_| streak.is_some_and(|(_, n)| n >= nav.confirm_frames.max(1)));
+                match confirmed {
+                    Some((NavAction::Stop, dist)) => {
+                        landed = true;
+                        events.push(Event {
+                            t,
+                            x: pose.x,
+                            y: pose.y,
+                            what: format!("land at STOP (estimated {dist:.2} m)"),
+                        });
                     }
+                    Some((action @ (NavAction::TurnLeft | NavAction::TurnRight), dist)) => {
+                        let left = action == NavAction::TurnLeft;
+                        target_yaw = wrap(pose.yaw + if left { -FRAC_PI_2 } else { FRAC_PI_2 });
+                        // Snap to the grid axes so turns do not accumulate error.
+                        target_yaw = wrap((target_yaw / FRAC_PI_2).round() * FRAC_PI_2);
+                        mode = Mode::Turning;
+                        streak = None;
+                        events.push(Event {
+                            t,
+                            x: pose.x,
+                            y: pose.y,
+                            what: format!(
+                                "turn {} (estimated {dist:.2} m)",
+                                if left { "left" } else { "right" }
+                            ),
+                        });
+                    }
+                    Some((NavAction::Wait, dist)) => {
+                        mode = Mode::Waiting;
+                        wait_started = t;
+                        streak = None;
+                        events.push(Event {
+                            t,
+                            x: pose.x,
+                            y: pose.y,
+                            what: format!("stop at WAIT (estimated {dist:.2} m)"),
+                        });
+                    }
+                    None => {}
                 }
                 if mode == Mode::Cruise && odo < wait_zone_until && ped_close {
                     mode = Mode::HoldForPedestrian;

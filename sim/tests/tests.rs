@@ -337,6 +337,43 @@ fn ground_truth_flights_complete_every_shipped_maze() {
 }
 
 #[test]
+fn an_arrow_misread_on_single_frames_does_not_steer_the_drone() {
+    let (left, right) = (Sign::TurnLeft.id(), Sign::TurnRight.id());
+    for name in ["easy", "hard"] {
+        let maze = Maze::builtin(name).unwrap();
+        let mut gt = GroundTruthPerception::default();
+        let mut misread = 0;
+        // every third frame, each arrow is read as its mirror image
+        let mut noisy = |input: &FrameInput<'_>| -> Result<Percept, PerceptionError> {
+            let mut p = frugal_sim::Perception::perceive(&mut gt, input)?;
+            if input.index % 3 == 0 {
+                for d in &mut p.detections {
+                    if d.class == left || d.class == right {
+                        d.class = if d.class == left { right } else { left };
+                        misread += 1;
+                    }
+                }
+            }
+            Ok(p)
+        };
+        let r = frugal_sim::fly(&maze, &fast_config(), &mut noisy, 1, None).unwrap();
+        assert!(misread > 0);
+        assert_eq!(r.outcome, Outcome::Success, "{name}: {:?}", r.events);
+        let turns = maze
+            .signs
+            .iter()
+            .filter(|s| matches!(s.sign, Sign::TurnLeft | Sign::TurnRight))
+            .count();
+        let done = r
+            .events
+            .iter()
+            .filter(|e| e.what.starts_with("turn "))
+            .count();
+        assert_eq!(done, turns, "{name}: {:?}", r.events);
+    }
+}
+
+#[test]
 fn slow_perception_slows_the_flight() {
     let maze = Maze::load(&maze_dir().join("easy.maze")).unwrap();
     let mut cfg = fast_config();
