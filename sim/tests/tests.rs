@@ -346,7 +346,7 @@ fn an_arrow_misread_on_single_frames_does_not_steer_the_drone() {
         // every third frame, each arrow is read as its mirror image
         let mut noisy = |input: &FrameInput<'_>| -> Result<Percept, PerceptionError> {
             let mut p = frugal_sim::Perception::perceive(&mut gt, input)?;
-            if input.index % 3 == 0 {
+            if input.index.is_multiple_of(3) {
                 for d in &mut p.detections {
                     if d.class == left || d.class == right {
                         d.class = if d.class == left { right } else { left };
