@@ -19,9 +19,10 @@ enum DataCommand {
     /// Render the synthetic dataset: warehouse videos with signs, exact boxes, COCO
     /// annotations per split and a manifest.
     ///
-    /// Same config and seed give byte-identical output. The default config makes 48
-    /// videos (3 clutter × 2 light levels × 8 videos, split 5 train / 1 val / 2 test
-    /// per combination) of 60 frames at 480×270.
+    /// Same config and seed give byte-identical output. The default config makes 396
+    /// videos at 480×270 (3 clutter × 2 light levels × 66 videos, split 60 train / 2
+    /// val / 4 test per combination): 6-frame training clips, 60-frame val and test
+    /// clips, 4,320 frames.
     Generate(GenerateArgs),
     /// Print counts per split, per scenario level and per class, and box sizes.
     Summary {
@@ -188,7 +189,7 @@ pub struct GenerateArgs {
 /// Built-in generator profiles.
 #[derive(ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Profile {
-    /// The default dataset (2,880 frames at 480×270).
+    /// The default dataset (4,320 frames at 480×270).
     Default,
     /// 216 frames at 320×180 (3 videos per level, 12 frames each), for a quick look.
     Quick,
