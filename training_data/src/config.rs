@@ -286,7 +286,7 @@ mod tests {
         let count = |s| plan.iter().filter(|v| v.split == s).count();
         assert_eq!(
             (count(Split::Train), count(Split::Val), count(Split::Test)),
-            (30, 6, 12)
+            (360, 12, 24)
         );
         let ids: BTreeSet<_> = plan.iter().map(|v| v.id).collect();
         assert_eq!(
