@@ -112,6 +112,7 @@ impl GenConfig {
             val_per_combo: 1,
             test_per_combo: 1,
             frames_per_video: 3,
+            train_frames_per_video: None,
             min_sign_px: 10.0,
             max_sign_px: 48.0,
             ..Self::default()
@@ -128,6 +129,7 @@ impl GenConfig {
             val_per_combo: 1,
             test_per_combo: 1,
             frames_per_video: 12,
+            train_frames_per_video: None,
             min_sign_px: 12.0,
             max_sign_px: 80.0,
             ..Self::default()
