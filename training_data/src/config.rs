@@ -39,7 +39,8 @@ pub struct GenConfig {
     /// Frames per *training* video, when different: many short training clips show
     /// the detector many more distinct signs for the same number of frames, while
     /// validation and test videos stay long enough for the tracker and the policy.
-    pub train_frames_per_video: Option<u32>,
+    /// 0: the same as `frames_per_video`.
+    pub train_frames_per_video: u32,
     /// At most this many signs are in view at once (1..=3).
     pub max_signs: u32,
     /// Fraction of videos' time with no sign in view (approach gaps), 0..1.
@@ -72,7 +73,7 @@ impl Default for GenConfig {
             val_per_combo: 2,
             test_per_combo: 4,
             frames_per_video: 60,
-            train_frames_per_video: Some(6),
+            train_frames_per_video: 6,
             max_signs: 3,
             empty_fraction: 0.1,
             min_sign_px: 14.0,
@@ -112,7 +113,7 @@ impl GenConfig {
             val_per_combo: 1,
             test_per_combo: 1,
             frames_per_video: 3,
-            train_frames_per_video: None,
+            train_frames_per_video: 0,
             min_sign_px: 10.0,
             max_sign_px: 48.0,
             ..Self::default()
@@ -129,7 +130,7 @@ impl GenConfig {
             val_per_combo: 1,
             test_per_combo: 1,
             frames_per_video: 12,
-            train_frames_per_video: None,
+            train_frames_per_video: 0,
             min_sign_px: 12.0,
             max_sign_px: 80.0,
             ..Self::default()
@@ -175,8 +176,8 @@ impl GenConfig {
                 self.videos_per_combo, self.val_per_combo, self.test_per_combo
             ));
         }
-        if self.frames_per_video == 0 || self.train_frames_per_video == Some(0) {
-            return fail("frames_per_video and train_frames_per_video must be at least 1".into());
+        if self.frames_per_video == 0 {
+            return fail("frames_per_video must be at least 1".into());
         }
         if !(1..=3).contains(&self.max_signs) {
             return fail(format!("max_signs ({}) must be 1, 2 or 3", self.max_signs));
@@ -224,8 +225,8 @@ impl GenConfig {
                         Split::Test
                     };
                     let frames = match split {
-                        Split::Train => {
-                            self.train_frames_per_video.unwrap_or(self.frames_per_video)
+                        Split::Train if self.train_frames_per_video > 0 => {
+                            self.train_frames_per_video
                         }
                         _ => self.frames_per_video,
                     };
@@ -321,7 +322,7 @@ mod tests {
             val_per_combo: 1,
             test_per_combo: 1,
             frames_per_video: 10,
-            train_frames_per_video: Some(3),
+            train_frames_per_video: 3,
             ..GenConfig::default()
         };
         let plan = c.video_plan();
@@ -333,11 +334,11 @@ mod tests {
         }
         assert_eq!(c.total_frames(), next);
         assert_eq!(next, 6 * (2 * 3 + 2 * 10));
-        let zero = GenConfig {
-            train_frames_per_video: Some(0),
+        let same = GenConfig {
+            train_frames_per_video: 0,
             ..c
         };
-        assert!(zero.validate(Path::new("z.toml")).is_err());
+        assert!(same.video_plan().iter().all(|p| p.frames == 10));
     }
 
     #[test]
