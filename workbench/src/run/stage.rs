@@ -257,6 +257,11 @@ impl Ctx {
                     .with_context(|| format!("moving {} into place", partial.display()))?;
             }
             if let Some(stamp) = read_stamp(&dir).filter(|s| s.inputs_hash == hash) {
+                // an attempt with other inputs that was killed is of no further use
+                if partial.exists() {
+                    std::fs::remove_dir_all(&partial)
+                        .with_context(|| format!("clearing {}", partial.display()))?;
+                }
                 println!(
                     "[{n}/{total}] {}: unchanged (inputs {}), skipped",
                     def.name,
