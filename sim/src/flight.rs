@@ -32,6 +32,11 @@ pub struct NavConfig {
     pub turn_distance: Option<f64>,
     /// Land when a centred STOP sign is estimated this close (`None`: half a cell).
     pub land_distance: Option<f64>,
+    /// A centred turn or STOP sign read at most this far away (`None`: two cells)
+    /// schedules the manoeuvre by odometry, at `turn_distance` / `land_distance` from
+    /// the sign; later readings refine the schedule. Close up, where a sign fills the
+    /// frame, the drone need not read it again.
+    pub commit_distance: Option<f64>,
     /// Stop and hover when a WAIT sign is estimated this close, metres.
     pub wait_distance: f64,
     /// Shortest hover at a WAIT sign, seconds.
@@ -69,6 +74,7 @@ impl Default for NavConfig {
             react_distance: 0.03,
             turn_distance: None,
             land_distance: None,
+            commit_distance: None,
             wait_distance: 3.0,
             wait_min_s: 1.0,
             wait_zone_length: None,
@@ -353,6 +359,11 @@ pub fn fly(
     let half_cell = maze.cell / 2.0;
     let turn_distance = nav.turn_distance.unwrap_or(half_cell);
     let land_distance = nav.land_distance.unwrap_or(half_cell);
+    let commit_distance = nav
+        .commit_distance
+        .unwrap_or(2.0 * maze.cell)
+        .max(turn_distance)
+        .max(land_distance);
     let zone_length = nav.wait_zone_length.unwrap_or(3.0 * maze.cell);
     let rearm = nav.rearm_distance.unwrap_or(half_cell);
     let yaw_rate = nav.yaw_rate_deg.to_radians();
@@ -374,6 +385,8 @@ pub fn fly(
     let mut wait_started = 0.0;
     let mut wait_s = 0.0;
     let mut streak: Option<(NavAction, u32)> = None;
+    // a turn or landing scheduled by odometry: (action, odometer reading, estimate)
+    let mut pending: Option<(NavAction, f64, f64)> = None;
     let mut rgb = Vec::new();
     let mut track = vec![TrackPoint {
         t,
@@ -523,9 +536,9 @@ pub fn fly(
                     let centred = (f64::from(cx) - f64::from(cam.width) / 2.0).abs()
                         <= nav.centre_band * f64::from(cam.width);
                     let acts = match action {
-                        NavAction::Stop => centred && dist <= land_distance,
+                        NavAction::Stop => centred && dist <= commit_distance,
                         NavAction::TurnLeft | NavAction::TurnRight => {
-                            centred && dist <= turn_distance && odo >= turn_armed_at
+                            centred && dist <= commit_distance && odo >= turn_armed_at
                         }
                         NavAction::Wait => dist <= nav.wait_distance && odo >= wait_zone_until,
                     };
@@ -541,31 +554,11 @@ pub fn fly(
                 let confirmed = candidate
                     .filter(|_| streak.is_some_and(|(_, n)| n >= nav.confirm_frames.max(1)));
                 match confirmed {
-                    Some((NavAction::Stop, dist)) => {
-                        landed = true;
-                        events.push(Event {
-                            t,
-                            x: pose.x,
-                            y: pose.y,
-                            what: format!("land at STOP (estimated {dist:.2} m)"),
-                        });
+                    Some((action @ NavAction::Stop, dist)) => {
+                        pending = Some((action, odo + (dist - land_distance).max(0.0), dist));
                     }
                     Some((action @ (NavAction::TurnLeft | NavAction::TurnRight), dist)) => {
-                        let left = action == NavAction::TurnLeft;
-                        target_yaw = wrap(pose.yaw + if left { -FRAC_PI_2 } else { FRAC_PI_2 });
-                        // Snap to the grid axes so turns do not accumulate error.
-                        target_yaw = wrap((target_yaw / FRAC_PI_2).round() * FRAC_PI_2);
-                        mode = Mode::Turning;
-                        streak = None;
-                        events.push(Event {
-                            t,
-                            x: pose.x,
-                            y: pose.y,
-                            what: format!(
-                                "turn {} (estimated {dist:.2} m)",
-                                if left { "left" } else { "right" }
-                            ),
-                        });
+                        pending = Some((action, odo + (dist - turn_distance).max(0.0), dist));
                     }
                     Some((NavAction::Wait, dist)) => {
                         mode = Mode::Waiting;
@@ -579,6 +572,40 @@ pub fn fly(
                         });
                     }
                     None => {}
+                }
+                // carry out a scheduled manoeuvre once the odometer reaches it
+                match pending {
+                    Some((NavAction::Stop, at, dist)) if mode == Mode::Cruise && odo >= at => {
+                        pending = None;
+                        landed = true;
+                        events.push(Event {
+                            t,
+                            x: pose.x,
+                            y: pose.y,
+                            what: format!("land at STOP (read at {dist:.2} m)"),
+                        });
+                    }
+                    Some((action @ (NavAction::TurnLeft | NavAction::TurnRight), at, dist))
+                        if mode == Mode::Cruise && odo >= at =>
+                    {
+                        pending = None;
+                        streak = None;
+                        let left = action == NavAction::TurnLeft;
+                        target_yaw = wrap(pose.yaw + if left { -FRAC_PI_2 } else { FRAC_PI_2 });
+                        // Snap to the grid axes so turns do not accumulate error.
+                        target_yaw = wrap((target_yaw / FRAC_PI_2).round() * FRAC_PI_2);
+                        mode = Mode::Turning;
+                        events.push(Event {
+                            t,
+                            x: pose.x,
+                            y: pose.y,
+                            what: format!(
+                                "turn {} (read at {dist:.2} m)",
+                                if left { "left" } else { "right" }
+                            ),
+                        });
+                    }
+                    _ => {}
                 }
                 if mode == Mode::Cruise && odo < wait_zone_until && ped_close {
                     mode = Mode::HoldForPedestrian;

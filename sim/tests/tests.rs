@@ -374,6 +374,29 @@ fn an_arrow_misread_on_single_frames_does_not_steer_the_drone() {
 }
 
 #[test]
+fn signs_unreadable_close_up_still_steer_the_drone() {
+    // a detector trained on signs up to ~100 px (at 480×270; 45 px at this camera's
+    // 240×135) loses them where they fill the frame; turns and the landing are
+    // scheduled by odometry from readings further away
+    let cfg = fast_config();
+    for name in ["easy", "medium", "hard"] {
+        let maze = Maze::builtin(name).unwrap();
+        let mut gt = GroundTruthPerception::default();
+        let mut dropped = 0;
+        let mut far_only = |input: &FrameInput<'_>| -> Result<Percept, PerceptionError> {
+            let mut p = frugal_sim::Perception::perceive(&mut gt, input)?;
+            let before = p.detections.len();
+            p.detections.retain(|d| d.bbox.height() <= 45.0);
+            dropped += before - p.detections.len();
+            Ok(p)
+        };
+        let r = frugal_sim::fly(&maze, &cfg, &mut far_only, 1, None).unwrap();
+        assert!(dropped > 0, "{name}: no sign came close");
+        assert_eq!(r.outcome, Outcome::Success, "{name}: {:?}", r.events);
+    }
+}
+
+#[test]
 fn slow_perception_slows_the_flight() {
     let maze = Maze::load(&maze_dir().join("easy.maze")).unwrap();
     let mut cfg = fast_config();
