@@ -20,6 +20,24 @@ use std::f64::consts::{FRAC_PI_2, TAU};
 use std::time::Instant;
 use thiserror::Error;
 
+/// A turn or STOP sign read ahead: its action, where it stands on the odometer, the
+/// last distance read, and its support: +1 per agreeing reading, × [`SUPPORT_DECAY`]
+/// per processed frame, so only a sign read on most recent frames reaches
+/// `confirm_frames`.
+#[derive(Clone, Copy, Debug)]
+struct Sighting {
+    action: NavAction,
+    at: f64,
+    dist: f64,
+    support: f64,
+    /// The highest support reached; a sighting that reached `confirm_frames` is
+    /// kept (and acted on) even when the sign is no longer readable close up.
+    peak: f64,
+}
+
+/// Per-frame decay of a sighting's support.
+const SUPPORT_DECAY: f64 = 0.8;
+
 /// Navigation parameters.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct NavConfig {
@@ -60,8 +78,11 @@ pub struct NavConfig {
     pub time_limit_s: f64,
     /// The camera delivers at most this many frames per second.
     pub camera_fps: f64,
-    /// A sign makes the drone act only after the same action was read on this many
-    /// processed frames in a row (1: act on the first).
+    /// A sign makes the drone act only after this many readings agree on it: for
+    /// WAIT, this many processed frames in a row; for a turn or STOP, readings of the
+    /// same action that place the sign at the same spot ahead (within 0.5 m + 15 % of
+    /// the distance), counted with a decay of 0.8 per processed frame (so it must be
+    /// read on most recent frames), and more than any other action read there.
     pub confirm_frames: u32,
 }
 
@@ -85,7 +106,7 @@ impl Default for NavConfig {
             radius: 0.25,
             time_limit_s: 3600.0,
             camera_fps: 60.0,
-            confirm_frames: 2,
+            confirm_frames: 3,
         }
     }
 }
@@ -385,8 +406,8 @@ pub fn fly(
     let mut wait_started = 0.0;
     let mut wait_s = 0.0;
     let mut streak: Option<(NavAction, u32)> = None;
-    // a turn or landing scheduled by odometry: (action, odometer reading, estimate)
-    let mut pending: Option<(NavAction, f64, f64)> = None;
+    // turn and STOP signs read ahead, placed on the odometer
+    let mut sightings: Vec<Sighting> = Vec::new();
     let mut rgb = Vec::new();
     let mut track = vec![TrackPoint {
         t,
@@ -544,52 +565,99 @@ pub fn fly(
                     };
                     acts.then_some((action, dist))
                 });
-                // … acts only once the same action was seen on `confirm_frames`
-                // processed frames in a row, so one misread sign does not steer the drone
-                streak = match (candidate, streak) {
-                    (Some((a, _)), Some((b, n))) if a == b => Some((a, n + 1)),
-                    (Some((a, _)), _) => Some((a, 1)),
-                    (None, _) => None,
-                };
-                let confirmed = candidate
-                    .filter(|_| streak.is_some_and(|(_, n)| n >= nav.confirm_frames.max(1)));
-                match confirmed {
-                    Some((action @ NavAction::Stop, dist)) => {
-                        pending = Some((action, odo + (dist - land_distance).max(0.0), dist));
-                    }
-                    Some((action @ (NavAction::TurnLeft | NavAction::TurnRight), dist)) => {
-                        pending = Some((action, odo + (dist - turn_distance).max(0.0), dist));
-                    }
+                let need = nav.confirm_frames.max(1);
+                match candidate {
                     Some((NavAction::Wait, dist)) => {
-                        mode = Mode::Waiting;
-                        wait_started = t;
-                        streak = None;
-                        events.push(Event {
-                            t,
-                            x: pose.x,
-                            y: pose.y,
-                            what: format!("stop at WAIT (estimated {dist:.2} m)"),
-                        });
+                        // … a WAIT sign after `need` frames in a row …
+                        streak = match streak {
+                            Some((NavAction::Wait, n)) => Some((NavAction::Wait, n + 1)),
+                            _ => Some((NavAction::Wait, 1)),
+                        };
+                        if streak.is_some_and(|(_, n)| n >= need) {
+                            mode = Mode::Waiting;
+                            wait_started = t;
+                            streak = None;
+                            events.push(Event {
+                                t,
+                                x: pose.x,
+                                y: pose.y,
+                                what: format!("stop at WAIT (estimated {dist:.2} m)"),
+                            });
+                        }
                     }
-                    None => {}
+                    // … a turn or STOP sign is placed on the odometer, where readings
+                    // of it accumulate
+                    Some((action, dist)) => {
+                        streak = None;
+                        let at = odo + dist;
+                        let tol = 0.5 + 0.15 * dist;
+                        match sightings
+                            .iter_mut()
+                            .find(|s| s.action == action && (s.at - at).abs() <= tol)
+                        {
+                            Some(s) => {
+                                s.support += 1.0;
+                                s.peak = s.peak.max(s.support);
+                                s.at = at; // the closer reading is the better one
+                                s.dist = dist;
+                            }
+                            None => sightings.push(Sighting {
+                                action,
+                                at,
+                                dist,
+                                support: 1.0,
+                                peak: 1.0,
+                            }),
+                        }
+                    }
+                    None => streak = None,
                 }
-                // carry out a scheduled manoeuvre once the odometer reaches it
-                match pending {
-                    Some((NavAction::Stop, at, dist)) if mode == Mode::Cruise && odo >= at => {
-                        pending = None;
+                // signs already passed, or not read for a while, are forgotten
+                let need_f = f64::from(need);
+                sightings.retain(|s| s.at > odo - 0.5 && (s.peak >= need_f || s.support > 0.05));
+                // carry out the best-supported manoeuvre once the odometer reaches it
+                let due = sightings
+                    .iter()
+                    .filter(|s| {
+                        let trigger = if s.action == NavAction::Stop {
+                            land_distance
+                        } else {
+                            turn_distance
+                        };
+                        s.peak >= need_f && odo >= s.at - trigger
+                    })
+                    .filter(|s| {
+                        // outvoted by another action read at the same spot: not yet
+                        !sightings.iter().any(|o| {
+                            o.action != s.action && (o.at - s.at).abs() <= 1.0 && o.peak >= s.peak
+                        })
+                    })
+                    .max_by(|a, b| a.peak.total_cmp(&b.peak))
+                    .copied();
+                for s in &mut sightings {
+                    s.support *= SUPPORT_DECAY;
+                }
+                match due {
+                    Some(Sighting {
+                        action: NavAction::Stop,
+                        dist,
+                        ..
+                    }) if mode == Mode::Cruise => {
+                        sightings.clear();
                         landed = true;
                         events.push(Event {
                             t,
                             x: pose.x,
                             y: pose.y,
-                            what: format!("land at STOP (read at {dist:.2} m)"),
+                            what: format!("land at STOP (last read at {dist:.2} m)"),
                         });
                     }
-                    Some((action @ (NavAction::TurnLeft | NavAction::TurnRight), at, dist))
-                        if mode == Mode::Cruise && odo >= at =>
-                    {
-                        pending = None;
-                        streak = None;
+                    Some(Sighting {
+                        action: action @ (NavAction::TurnLeft | NavAction::TurnRight),
+                        dist,
+                        ..
+                    }) if mode == Mode::Cruise => {
+                        sightings.clear();
                         let left = action == NavAction::TurnLeft;
                         target_yaw = wrap(pose.yaw + if left { -FRAC_PI_2 } else { FRAC_PI_2 });
                         // Snap to the grid axes so turns do not accumulate error.
@@ -600,7 +668,7 @@ pub fn fly(
                             x: pose.x,
                             y: pose.y,
                             what: format!(
-                                "turn {} (read at {dist:.2} m)",
+                                "turn {} (last read at {dist:.2} m)",
                                 if left { "left" } else { "right" }
                             ),
                         });

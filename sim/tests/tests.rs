@@ -397,6 +397,32 @@ fn signs_unreadable_close_up_still_steer_the_drone() {
 }
 
 #[test]
+fn false_turn_signs_that_do_not_stay_put_are_ignored() {
+    let right = Sign::TurnRight.id();
+    for name in ["easy", "medium"] {
+        let maze = Maze::builtin(name).unwrap();
+        let mut gt = GroundTruthPerception::default();
+        // two frames in every six, a centred "turn right" box of a size that jumps
+        // about, as a distractor misread at random distances would give
+        let mut haunted = |input: &FrameInput<'_>| -> Result<Percept, PerceptionError> {
+            let mut p = frugal_sim::Perception::perceive(&mut gt, input)?;
+            if input.index % 6 < 2 {
+                let h = 12.0 + ((input.index * 7919) % 40) as f32;
+                let (cx, cy) = (120.0, 60.0);
+                p.detections.push(frugal_runtime::Detection {
+                    bbox: BBox::new(cx - h / 2.0, cy - h / 2.0, cx + h / 2.0, cy + h / 2.0),
+                    score: 0.9,
+                    class: right,
+                });
+            }
+            Ok(p)
+        };
+        let r = frugal_sim::fly(&maze, &fast_config(), &mut haunted, 1, None).unwrap();
+        assert_eq!(r.outcome, Outcome::Success, "{name}: {:?}", r.events);
+    }
+}
+
+#[test]
 fn slow_perception_slows_the_flight() {
     let maze = Maze::load(&maze_dir().join("easy.maze")).unwrap();
     let mut cfg = fast_config();
