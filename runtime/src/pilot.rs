@@ -142,13 +142,24 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
         })
     }
 
+    /// The score at which the current variant's detections are reported (and
+    /// tracked): its family's `T_c`.
+    pub fn report_score(&self) -> f32 {
+        let c = &self.controller;
+        c.bundle()
+            .variant_buckets(c.current_variant())
+            .map_or(f32::NEG_INFINITY, |b| b.t_c)
+    }
+
     /// Hand over the detections (best first) that the last [`Decision::Detect`] asked
     /// for, found on the frame whose pyramid is `cur`: the best score goes to the
-    /// controller on the next frame, and up to `TRACKS` boxes are tracked from here.
+    /// controller on the next frame, and up to `TRACKS` of the reported boxes (those
+    /// scoring at least [`Pilot::report_score`]) are tracked from here.
     pub fn detected(&mut self, cur: &Pyramid<'_>, detections: &[Detection]) {
         self.score = detections.first().map(|d| d.score);
         self.active = 0;
-        for d in detections.iter().take(TRACKS) {
+        let t_c = self.report_score();
+        for d in detections.iter().filter(|d| d.score >= t_c).take(TRACKS) {
             let Some(h) = self.held.get_mut(self.active) else {
                 break;
             };

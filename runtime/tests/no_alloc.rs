@@ -164,6 +164,7 @@ fn the_pilot_loop_allocates_nothing_and_follows_two_signs() {
     let mut prev = Pyramid::new(&mut wa, w, h, 3).unwrap();
     let mut next = Pyramid::new(&mut wb, w, h, 3).unwrap();
     let (mut detections, mut tracked_frames, mut worst_iou) = (0u32, 0u32, 1.0f32);
+    let mut unreported = 0;
     for frame in 0..2_000u32 {
         // forward through the clip, then start over (a cut: the tracker must cope)
         let i = frame as usize % clip.frames.len();
@@ -180,6 +181,13 @@ fn the_pilot_loop_allocates_nothing_and_follows_two_signs() {
                         score: 0.95,
                         class: 3,
                     },
+                    // below every family's T_c: not reported, so never tracked
+                    // (listed before the next one so that it would take its slot)
+                    Detection {
+                        bbox: frugal_runtime::BBox::new(60.0, 40.0, 80.0, 60.0),
+                        score: -100.0,
+                        class: 7,
+                    },
                     Detection {
                         bbox: frugal_runtime::BBox::new(4.0, 4.0, 20.0, 20.0),
                         score: 0.7,
@@ -190,6 +198,7 @@ fn the_pilot_loop_allocates_nothing_and_follows_two_signs() {
             }
             Decision::Track => {
                 tracked_frames += 1;
+                unreported += pilot.tracked().filter(|d| d.class == 7).count();
                 if let Some(d) = pilot.tracked().find(|d| d.class == 3) {
                     worst_iou = worst_iou.min(d.bbox.iou(&clip.boxes[i]));
                 }
@@ -203,6 +212,7 @@ fn the_pilot_loop_allocates_nothing_and_follows_two_signs() {
         allocations, 0,
         "{allocations} allocations in 2,000 pilot frames"
     );
+    assert_eq!(unreported, 0, "a detection below T_c was tracked");
     assert!(
         tracked_frames > 1_500 && detections >= 150,
         "tracked {tracked_frames}, detections {detections}"

@@ -14,7 +14,11 @@ use std::time::Instant;
 /// The bundle file inside a bundle folder (written by `frugal bundle write`).
 pub const BUNDLE_FILE: &str = "policy.frpb";
 
-/// One ONNX variant every frame (the paper's static baseline).
+/// The score at which a CNN detection is reported: the CNN family's `T_c`.
+pub const CNN_REPORT_SCORE: f32 = 0.5;
+
+/// One ONNX variant every frame (the paper's static baseline), reporting detections
+/// scoring at least [`CNN_REPORT_SCORE`].
 pub fn static_onnx(
     dir: &Path,
     threads: usize,
@@ -23,7 +27,11 @@ pub fn static_onnx(
     let name = dir
         .file_name()
         .map_or("onnx".into(), |n| n.to_string_lossy().into_owned());
-    Ok(DetectorPerception::new(format!("static-{name}"), detector))
+    let mut p = DetectorPerception::new(format!("static-{name}"), detector);
+    // the CNN family's reporting threshold T_c (a softmax probability), as the replay
+    // evaluation and the adaptive runtime use
+    p.min_score = CNN_REPORT_SCORE;
+    Ok(p)
 }
 
 /// The adaptive runtime in the loop.
@@ -116,11 +124,14 @@ impl Perception for AdaptivePerception {
                     .detectors
                     .get_mut(v)
                     .ok_or("the policy names a variant outside the bundle")?;
-                let found = det.detect(frame)?;
+                let mut found = det.detect(frame)?;
                 self.pilot.detected(&cur, &found);
                 if let Some(n) = self.detections_per_variant.get_mut(v) {
                     *n += 1;
                 }
+                // the drone acts on reported detections only, as the replay scores them
+                let t_c = self.pilot.report_score();
+                found.retain(|d| d.score >= t_c);
                 found
             }
             Decision::Track => self.pilot.tracked().collect(),
