@@ -2,31 +2,6 @@
 use super::{frugal, json, p, tiny_dataset};
 use std::path::Path;
 
-const TINY: &str = r#"
-[model]
-backbone = [
-  { out_channels = 8, stride = 2, convs = 1 },
-  { out_channels = 16, stride = 2, convs = 1 },
-  { out_channels = 16, stride = 1, convs = 1 },
-]
-rpn_channels = 8
-anchor_sizes = [12.0, 24.0]
-anchor_ratios = [1.0]
-roi_size = 3
-roi_hidden = 16
-pre_nms_train = 100
-post_nms_train = 30
-pre_nms_test = 100
-post_nms_test = 10
-
-[train]
-epochs = 1
-batch_size = 3
-warmup_steps = 1
-train_frames = 6
-val_frames = 2
-"#;
-
 const GRID: &str = r#"
 calibration_frames = 3
 drift_frames = 2
@@ -72,7 +47,7 @@ fn compress_then_pareto_on_a_tiny_model() {
         tmp.path().join("pareto"),
     );
     let cfg = tmp.path().join("tiny.toml");
-    std::fs::write(&cfg, TINY).unwrap();
+    std::fs::write(&cfg, frugal::run::TINY_DETECTOR).unwrap();
     let grid = tmp.path().join("grid.toml");
     std::fs::write(&grid, GRID).unwrap();
     tiny_dataset(&data);

@@ -1,38 +1,13 @@
 //! `frugal train` and `frugal eval` on a tiny generated dataset with a tiny model.
 use super::{frugal, p, tiny_dataset};
 
-const TINY: &str = r#"
-[model]
-backbone = [
-  { out_channels = 8, stride = 2, convs = 1 },
-  { out_channels = 16, stride = 2, convs = 1 },
-  { out_channels = 24, stride = 2, convs = 1 },
-]
-rpn_channels = 16
-anchor_sizes = [12.0, 24.0]
-anchor_ratios = [1.0]
-roi_size = 3
-roi_hidden = 32
-pre_nms_train = 100
-post_nms_train = 30
-pre_nms_test = 100
-post_nms_test = 10
-
-[train]
-epochs = 2
-batch_size = 3
-warmup_steps = 1
-train_frames = 6
-val_frames = 4
-"#;
-
 #[test]
 fn train_resume_and_eval_on_a_tiny_dataset() {
     let tmp = tempfile::tempdir().unwrap();
     let data = tmp.path().join("data");
     let out = tmp.path().join("model");
     let cfg = tmp.path().join("tiny.toml");
-    std::fs::write(&cfg, TINY).unwrap();
+    std::fs::write(&cfg, frugal::run::TINY_DETECTOR).unwrap();
     tiny_dataset(&data);
 
     // an interrupted run (one epoch), then --resume finishes it

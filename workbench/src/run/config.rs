@@ -158,8 +158,9 @@ name = "ch50"
 technique = { kind = "channels", keep = 0.5 }
 "#;
 
-/// The tiny profile's detector: a few thousand parameters, one short epoch.
-const TINY_DETECTOR: &str = r#"
+/// The tiny profile's detector (TOML): a few thousand parameters, two short epochs;
+/// the end-to-end tests train it too.
+pub const TINY_DETECTOR: &str = r#"
 [model]
 backbone = [
   { out_channels = 8, stride = 2, convs = 1 },
@@ -196,11 +197,11 @@ backbone = [
 rpn_channels = 32
 roi_hidden = 128
 [train]
-epochs = 3
+epochs = 12
 batch_size = 4
-warmup_steps = 10
-val_frames = 30
-threads = 1
+warmup_steps = 20
+val_frames = 60
+threads = 2
 "#;
 
 impl RunConfig {
@@ -250,7 +251,15 @@ impl RunConfig {
             },
             Profile::Quick => RunConfig {
                 profile,
-                data: GenConfig::quick(),
+                // short training clips as in the default, at 320×180
+                data: GenConfig {
+                    videos_per_combo: 24,
+                    val_per_combo: 1,
+                    test_per_combo: 1,
+                    frames_per_video: 30,
+                    train_frames_per_video: 6,
+                    ..GenConfig::quick()
+                },
                 detector: parse_detector(QUICK_DETECTOR)?,
                 compress: parse_grid(QUICK_GRID)?,
                 pareto: ParetoSettings {

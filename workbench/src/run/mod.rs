@@ -12,7 +12,7 @@ mod config;
 mod report;
 mod stage;
 
-pub use config::{Profile, RunConfig};
+pub use config::{Profile, RunConfig, TINY_DETECTOR};
 
 use anyhow::Context;
 use clap::Args;
