@@ -155,18 +155,34 @@ fn mtime(path: PathBuf) -> std::time::SystemTime {
 fn run_generates_the_data_stage_once_and_then_reuses_it() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let run = tmp.path().join("run");
-    frugal(&["run", "--out", p(&run), "--tiny", "--quiet"]).expect("first run");
-    let manifest = run.join("data/manifest.json");
+    let until_data = |extra: &[&str]| {
+        let mut args = vec![
+            "run",
+            "--out",
+            p(&run),
+            "--tiny",
+            "--quiet",
+            "--until",
+            "data",
+        ];
+        args.extend_from_slice(extra);
+        frugal(&args)
+    };
+    until_data(&[]).expect("first run");
+    let manifest = run.join("data/dataset/manifest.json");
     let first = mtime(manifest.clone());
     let hash = json(&manifest)["source"]["config_hash"].clone();
     assert!(hash.as_str().is_some_and(|h| h.len() == 64));
-    frugal(&["run", "--out", p(&run), "--tiny", "--quiet"]).expect("second run");
+    assert!(!run.join("detector").exists(), "--until data stops there");
+    until_data(&[]).expect("second run");
     assert_eq!(
         mtime(manifest.clone()),
         first,
         "identical config: dataset reused, not rewritten"
     );
-    frugal(&["run", "--out", p(&run), "--quick", "--quiet"]).expect("quick run");
+    let cfg = tmp.path().join("seed.toml");
+    std::fs::write(&cfg, "profile = \"tiny\"\n[data]\nseed = 99\n").expect("write");
+    until_data(&[p(&cfg)]).expect("another seed");
     assert_ne!(
         json(&manifest)["source"]["config_hash"],
         hash,
