@@ -13,7 +13,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// One maze of the flights comparison.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, serde::Deserialize)]
 pub(crate) struct FlightRow {
     /// Maze name.
     pub maze: String,
@@ -251,23 +251,9 @@ fn flights_table(rows: &[FlightRow]) -> String {
 pub(crate) fn write(ctx: &Ctx, outcomes: &[Outcome], seconds: f64) -> anyhow::Result<PathBuf> {
     let run = &ctx.run;
     let of = |name: &str| outcomes.iter().find(|o| o.def.name == name);
-    let flights: Vec<FlightRow> = read_json(&run.join("flights/comparison.json"))
-        .and_then(|v| {
-            // re-read through the typed summaries so the table formats them
-            let rows = v.as_array()?.clone();
-            rows.into_iter()
-                .map(|r| {
-                    Some(FlightRow {
-                        maze: r["maze"].as_str()?.to_string(),
-                        static_variant: r["static_variant"].as_str()?.to_string(),
-                        r#static: serde_json::from_value(r["static"].clone()).ok()?,
-                        adaptive: serde_json::from_value(r["adaptive"].clone()).ok()?,
-                        fps_ratio: r["fps_ratio"].as_f64()?,
-                        time_ratio: r["time_ratio"].as_f64(),
-                    })
-                })
-                .collect()
-        })
+    let flights: Vec<FlightRow> = std::fs::read(run.join("flights/comparison.json"))
+        .ok()
+        .and_then(|b| serde_json::from_slice(&b).ok())
         .unwrap_or_default();
     let mut md = String::new();
     let _ = writeln!(

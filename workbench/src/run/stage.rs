@@ -113,11 +113,8 @@ pub(crate) struct Ctx {
     pub quiet: bool,
 }
 
-fn sha256_hex(bytes: &[u8]) -> String {
-    Sha256::digest(bytes)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect()
+fn hex(digest: &[u8]) -> String {
+    digest.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// Content hash of a folder: every file's relative path and bytes, in sorted order
@@ -145,7 +142,7 @@ pub(crate) fn hash_dir(dir: &Path) -> anyhow::Result<String> {
         h.update((bytes.len() as u64).to_le_bytes());
         h.update(&bytes);
     }
-    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+    Ok(hex(&h.finalize()))
 }
 
 fn read_stamp(dir: &Path) -> Option<Stamp> {
@@ -234,7 +231,7 @@ impl Ctx {
             "section": self.section(def.name)?,
             "upstream": upstream,
         });
-        Ok(sha256_hex(serde_json::to_string(&v)?.as_bytes()))
+        Ok(hex(&Sha256::digest(serde_json::to_string(&v)?.as_bytes())))
     }
 
     /// Run stage `def` (number `n`) unless its stamp matches, following the
