@@ -2,6 +2,7 @@
 //! TOML or JSON (unknown fields are rejected), saved as JSON next to every checkpoint.
 use crate::ModelError;
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::path::Path;
 
 /// One backbone block: `convs` 3×3 convolutions + ReLU, the first with `stride`.
@@ -192,6 +193,10 @@ pub struct TrainConfig {
     pub roi_batch: usize,
     /// Largest share of foreground among sampled RoIs.
     pub roi_fg_fraction: f64,
+    /// Share of the background RoI budget filled with the background proposals the RPN
+    /// ranks highest (hard negatives: sign-like distractors), the rest drawn at random.
+    /// 0 = all random.
+    pub roi_hard_negatives: f64,
     /// Brightness factor drawn in `[1 - b, 1 + b]`.
     pub brightness: f32,
     /// Largest Gaussian noise σ (pixels in `[0, 1]`).
@@ -206,6 +211,10 @@ pub struct TrainConfig {
     pub val_frames: usize,
     /// Training frames used per epoch (0 = the whole split).
     pub train_frames: usize,
+    /// Sampling weight per scenario `"<clutter>-clutter/<light>-light"` (others: 1).
+    /// An epoch keeps its number of steps; a frame of weight 2 is drawn about twice as
+    /// often as one of weight 1.
+    pub scenario_weights: BTreeMap<String, f64>,
     /// Intra-op threads for libtorch (0 = libtorch's default). The default is 1:
     /// on a shared 2-core machine, 2 OpenMP threads ran 4-5× slower than 1.
     pub threads: usize,
@@ -215,7 +224,7 @@ impl Default for TrainConfig {
     fn default() -> Self {
         Self {
             seed: 7,
-            epochs: 4,
+            epochs: 8,
             batch_size: 4,
             optimizer: OptimizerKind::AdamW,
             lr: 1e-3,
@@ -226,6 +235,7 @@ impl Default for TrainConfig {
             rpn_fg_fraction: 0.5,
             roi_batch: 64,
             roi_fg_fraction: 0.25,
+            roi_hard_negatives: 0.5,
             brightness: 0.3,
             noise: 0.03,
             blur_prob: 0.2,
@@ -233,6 +243,7 @@ impl Default for TrainConfig {
             channel_gain: 0.1,
             val_frames: 300,
             train_frames: 0,
+            scenario_weights: BTreeMap::from([("high-clutter/low-light".to_string(), 2.0)]),
             threads: 1,
         }
     }
@@ -285,8 +296,52 @@ impl Config {
                 msg: "lr must be positive".into(),
             });
         }
+        if !(0.0..=1.0).contains(&t.roi_hard_negatives) {
+            return Err(ModelError::Config {
+                file: what.to_string(),
+                msg: format!(
+                    "roi_hard_negatives must be in [0, 1], not {}",
+                    t.roi_hard_negatives
+                ),
+            });
+        }
+        let scenarios = scenario_names();
+        for (name, w) in &t.scenario_weights {
+            if !scenarios.contains(name) {
+                return Err(ModelError::Config {
+                    file: what.to_string(),
+                    msg: format!(
+                        "scenario_weights: unknown scenario {name:?}; the scenarios are {}",
+                        scenarios.join(", ")
+                    ),
+                });
+            }
+            if !(0.0..=10.0).contains(w) {
+                return Err(ModelError::Config {
+                    file: what.to_string(),
+                    msg: format!("scenario_weights.{name:?} must be in [0, 10], not {w}"),
+                });
+            }
+        }
         Ok(())
     }
+}
+
+/// Every scenario name `"<clutter>-clutter/<light>-light"`, as the evaluation reports them.
+pub fn scenario_names() -> Vec<String> {
+    use frugal_data::{Clutter, Light};
+    let mut out = Vec::new();
+    for c in [Clutter::Low, Clutter::Medium, Clutter::High] {
+        for l in [Light::Normal, Light::Low] {
+            out.push(scenario_name(c, l));
+        }
+    }
+    out
+}
+
+/// The name of one scenario, `"<clutter>-clutter/<light>-light"`.
+pub fn scenario_name(c: frugal_data::Clutter, l: frugal_data::Light) -> String {
+    format!("{}-clutter/{}-light", c.name(), l.name())
 }
 
 #[cfg(test)]
@@ -307,5 +362,14 @@ mod tests {
         let err = Config::load(&t).unwrap_err().to_string();
         assert!(err.contains("c.toml") && err.contains("epoch"), "{err}");
         assert_eq!(ModelConfig::default().stride(), 8);
+        std::fs::write(&t, "[train.scenario_weights]\n\"dark/high\" = 2.0\n").unwrap();
+        let err = Config::load(&t).unwrap_err().to_string();
+        assert!(
+            err.contains("dark/high") && err.contains("high-clutter/low-light"),
+            "{err}"
+        );
+        std::fs::write(&t, "[train]\nroi_hard_negatives = 1.5\n").unwrap();
+        let err = Config::load(&t).unwrap_err().to_string();
+        assert!(err.contains("roi_hard_negatives"), "{err}");
     }
 }

@@ -36,9 +36,11 @@ pub struct EvalReport {
     pub seconds_per_frame: f64,
 }
 
-fn scenario(ds: &Dataset, f: &FrameRecord) -> String {
+/// The scenario of a frame, `"<clutter>-clutter/<light>-light"` (`"unknown"` when its
+/// video is not in the manifest).
+pub(crate) fn scenario(ds: &Dataset, f: &FrameRecord) -> String {
     match ds.video(f.video) {
-        Some(v) => format!("{}-clutter/{}-light", v.clutter.name(), v.light.name()),
+        Some(v) => crate::config::scenario_name(v.clutter, v.light),
         None => "unknown".into(),
     }
 }

@@ -69,6 +69,25 @@ fn sample(
     (fg, bg)
 }
 
+/// RoI sampling with hard negatives: `fg` as [`sample`] does; of the background budget,
+/// the share `roi_hard_negatives` goes to the first background candidates (proposals come
+/// best objectness first, so these are what the RPN finds most sign-like), the rest is
+/// drawn at random from the others.
+fn sample_hard(
+    fg: Vec<usize>,
+    mut bg: Vec<usize>,
+    tc: &TrainConfig,
+    rng: &mut ChaCha8Rng,
+) -> (Vec<usize>, Vec<usize>) {
+    let (fg, _) = sample(fg, Vec::new(), tc.roi_batch, tc.roi_fg_fraction, rng);
+    let budget = tc.roi_batch - fg.len();
+    let hard = ((budget as f64 * tc.roi_hard_negatives).round() as usize).min(bg.len());
+    let rest = bg.split_off(hard);
+    let (_, rest) = sample(Vec::new(), rest, budget - hard, 0.0, rng);
+    bg.extend(rest);
+    (fg, bg)
+}
+
 /// RPN anchor labels: `(foreground anchors with their target box, background anchors)`.
 /// Foreground: IoU ≥ 0.7 with some object, or the best anchor(s) of an object;
 /// background: best IoU < 0.3.
@@ -133,7 +152,7 @@ pub fn roi_assign(
     let bg: Vec<usize> = (0..cand.len())
         .filter(|&i| tb.is_empty() || best[i].0 < ROI_FG_IOU)
         .collect();
-    let (fg, bg) = sample(fg, bg, tc.roi_batch, tc.roi_fg_fraction, rng);
+    let (fg, bg) = sample_hard(fg, bg, tc, rng);
     let mut out: Vec<(BBox, i64, Option<BBox>)> = fg
         .into_iter()
         .map(|i| {
@@ -298,5 +317,39 @@ mod tests {
         let r = roi_assign(&props, &truth, &tc, &mut rng);
         assert_eq!(r.iter().filter(|x| x.1 == 4).count(), 2); // the close proposal and the truth itself
         assert_eq!(r.iter().filter(|x| x.1 == 0).count(), 1);
+    }
+
+    #[test]
+    fn hard_negatives_are_the_best_ranked_background_proposals() {
+        // 40 background proposals, best objectness first; no truth at all
+        let props: Vec<BBox> = (0..40)
+            .map(|i| BBox::new(i as f32 * 10.0, 0.0, i as f32 * 10.0 + 8.0, 8.0))
+            .collect();
+        let tc = TrainConfig {
+            roi_batch: 10,
+            roi_hard_negatives: 0.5,
+            ..Default::default()
+        };
+        for seed in 0..20 {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let r = roi_assign(&props, &[], &tc, &mut rng);
+            assert_eq!(r.len(), 10);
+            let mut x: Vec<f32> = r.iter().map(|x| x.0.x1).collect();
+            x.sort_by(f32::total_cmp);
+            // the five best-ranked always, five more drawn from the rest
+            assert_eq!(&x[..5], &[0.0, 10.0, 20.0, 30.0, 40.0]);
+            assert!(x[5..].iter().all(|&v| v >= 50.0));
+        }
+        // none hard: the first five are not always there
+        let random = TrainConfig {
+            roi_hard_negatives: 0.0,
+            ..tc
+        };
+        let always = (0..20).all(|seed| {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let r = roi_assign(&props, &[], &random, &mut rng);
+            (0..5).all(|i| r.iter().any(|x| x.0.x1 == i as f32 * 10.0))
+        });
+        assert!(!always);
     }
 }

@@ -309,6 +309,27 @@ pub fn detect_frames(
     Ok(out)
 }
 
+/// One epoch's frame order: as many draws as there are frames, frame `i` about
+/// `weights[i]` times as often as a frame of weight 1 (each frame `⌊w⌋` times, plus once
+/// more with probability `w − ⌊w⌋`, shuffled, then cut to length). All weights 1 give a
+/// plain shuffle of every frame.
+pub fn epoch_order(weights: &[f64], rng: &mut ChaCha8Rng) -> Vec<usize> {
+    let mut pool: Vec<usize> = Vec::with_capacity(weights.len());
+    for (i, &w) in weights.iter().enumerate() {
+        let w = w.max(0.0);
+        let whole = w.floor();
+        for _ in 0..whole as usize {
+            pool.push(i);
+        }
+        if w > whole && rng.random::<f64>() < w - whole {
+            pool.push(i);
+        }
+    }
+    pool.shuffle(rng);
+    pool.truncate(weights.len());
+    pool
+}
+
 /// Up to `n` frames spread evenly over `frames` (all when `n == 0`).
 pub fn spread(frames: Vec<&FrameRecord>, n: usize) -> Vec<&FrameRecord> {
     if n == 0 || frames.len() <= n {
@@ -420,6 +441,19 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
         )));
     }
     let val_frames = spread(ds.split(Split::Val).collect(), tc.val_frames);
+    let weights: Vec<f64> = train_frames
+        .iter()
+        .map(|f| {
+            let name = crate::eval::scenario(&ds, f);
+            tc.scenario_weights.get(&name).copied().unwrap_or(1.0)
+        })
+        .collect();
+    if weights.iter().all(|&w| w <= 0.0) {
+        return Err(ModelError::Data(format!(
+            "{}: scenario_weights give every training frame weight 0",
+            opts.data.display()
+        )));
+    }
     if let Some(f) = train_frames
         .iter()
         .flat_map(|f| &f.objects)
@@ -471,10 +505,9 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
 
     for epoch in state.epochs_done..last_epoch {
         let te = std::time::Instant::now();
-        let mut order: Vec<usize> = (0..train_frames.len()).collect();
         let mut order_rng = ChaCha8Rng::seed_from_u64(state.rng_seed);
         order_rng.set_stream(epoch as u64);
-        order.shuffle(&mut order_rng);
+        let order = epoch_order(&weights, &mut order_rng);
         let mut sums = [0.0f64; 5];
         let mut n_steps = 0usize;
         let mut lr = tc.lr;
@@ -585,6 +618,36 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn epoch_order_draws_frames_by_scenario_weight() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        // all weights 1: a permutation of every frame
+        let mut o = epoch_order(&[1.0; 50], &mut rng);
+        assert_eq!(o.len(), 50);
+        o.sort_unstable();
+        assert_eq!(o, (0..50).collect::<Vec<_>>());
+        // frames 0..10 weight 3, 10..20 weight 0, the rest 1: same length, the weighted
+        // ones about three times as often, the zero-weight ones never
+        let w: Vec<f64> = (0..60)
+            .map(|i| match i {
+                0..10 => 3.0,
+                10..20 => 0.0,
+                _ => 1.0,
+            })
+            .collect();
+        let (mut heavy, mut light) = (0usize, 0usize);
+        for _ in 0..200 {
+            let o = epoch_order(&w, &mut rng);
+            assert_eq!(o.len(), 60);
+            assert!(o.iter().all(|&i| !(10..20).contains(&i)));
+            heavy += o.iter().filter(|&&i| i < 10).count();
+            light += o.iter().filter(|&&i| i >= 20).count();
+        }
+        // per frame: heavy / 10 vs light / 40, expect a ratio of 3
+        let ratio = (heavy as f64 / 10.0) / (light as f64 / 40.0);
+        assert!((ratio - 3.0).abs() < 0.2, "ratio {ratio}");
+    }
 
     #[test]
     fn geometric_augmentation_moves_boxes_with_the_pixels() {

@@ -279,14 +279,38 @@ fn truth(video: &VideoLog, f: usize) -> Vec<Truth> {
         .collect()
 }
 
-/// Per-frame correctness of a variant: every sign found, no false alarm.
-pub fn correct(log: &ReplayLog, video: &VideoLog, f: usize, v: usize, iou: f32) -> bool {
+/// True positives, false positives and false negatives of variant `v`'s reported
+/// detections on frame `f`, matched at `iou`.
+fn frame_counts(
+    log: &ReplayLog,
+    video: &VideoLog,
+    f: usize,
+    v: usize,
+    iou: f32,
+) -> (usize, usize, usize) {
     let im = ImageResult {
         detections: reported(log, video, f, v),
         truth: truth(video, f),
     };
-    let (_, fp, fneg) = image_counts(&im, iou, f32::NEG_INFINITY);
+    image_counts(&im, iou, f32::NEG_INFINITY)
+}
+
+/// Per-frame correctness of a variant: every sign found, no false alarm.
+pub fn correct(log: &ReplayLog, video: &VideoLog, f: usize, v: usize, iou: f32) -> bool {
+    let (_, fp, fneg) = frame_counts(log, video, f, v, iou);
     fp == 0 && fneg == 0
+}
+
+/// The F1 of variant `v` on frame `f` alone, `2 tp / (2 tp + fp + fn)`: 1 when it
+/// reports exactly the signs there are (nothing, on a frame without signs), 0 when it
+/// finds none of them or only false alarms.
+pub fn frame_f1(log: &ReplayLog, video: &VideoLog, f: usize, v: usize, iou: f32) -> f64 {
+    let (tp, fp, fneg) = frame_counts(log, video, f, v, iou);
+    if tp + fp + fneg == 0 {
+        1.0
+    } else {
+        (2 * tp) as f64 / (2 * tp + fp + fneg) as f64
+    }
 }
 
 /// The most accurate variant (F1 detecting every frame) on the log's training videos

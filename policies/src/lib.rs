@@ -69,5 +69,5 @@ pub mod variants;
 pub use error::{PolicyError, Result};
 pub use mdp::{Mdp, MdpError, Solution};
 pub use replay::ReplayLog;
-pub use train::{PolicyConfig, TrainedPolicy, Weights};
+pub use train::{PolicyConfig, Reward, TrainedPolicy, Weights};
 pub use variants::VariantSet;

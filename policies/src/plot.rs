@@ -80,23 +80,30 @@ fn sweep_draw<DB: DrawingBackend>(
         .y_desc("F1 @ IoU 0.5")
         .draw()
         .map_err(s)?;
-    let mut scales: Vec<f64> = pts.iter().map(|p| p.ge_scale).collect();
-    scales.sort_by(f64::total_cmp);
-    scales.dedup();
-    for (i, sc) in scales.iter().enumerate() {
+    // one line per reward (and, for the confidence reward, per w_ge scale)
+    let mut series: Vec<(&str, f64)> = pts.iter().map(|p| (p.reward.name(), p.ge_scale)).collect();
+    series.sort_by(|a, b| a.0.cmp(b.0).then(a.1.total_cmp(&b.1)));
+    series.dedup();
+    for (i, &(reward, sc)) in series.iter().enumerate() {
         let color = Palette99::pick(i).to_rgba();
+        let of = |p: &&SweepPoint| p.reward.name() == reward && p.ge_scale == sc;
         let mut line: Vec<(f64, f64)> = pts
             .iter()
-            .filter(|p| p.ge_scale == *sc)
+            .filter(of)
             .map(|p| (p.ms_per_frame, p.f1))
             .collect();
         line.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let label = if reward == "confidence" {
+            format!("confidence reward, w_ge × {sc}")
+        } else {
+            format!("{reward} reward")
+        };
         chart
             .draw_series(LineSeries::new(line, color.stroke_width(2)))
             .map_err(s)?
-            .label(format!("w_ge × {sc}"))
+            .label(label)
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color));
-        for p in pts.iter().filter(|p| p.ge_scale == *sc) {
+        for p in pts.iter().filter(of) {
             chart
                 .draw_series(std::iter::once(Circle::new(
                     (p.ms_per_frame, p.f1),
@@ -122,7 +129,7 @@ fn sweep_draw<DB: DrawingBackend>(
     Ok(())
 }
 
-/// The α sweep: time per frame against F1, one line per `w_ge` scale.
+/// The α sweep: time per frame against F1, one line per reward and `w_ge` scale.
 pub fn plot_sweep(stem: &Path, pts: &[SweepPoint]) -> Result<()> {
     both(stem, (900, 600), &|r| sweep_draw(r, pts), &|r| {
         sweep_draw(r, pts)

@@ -41,12 +41,16 @@ pub fn train_and_write(
     policy.save(&out.join("policy.json"))?;
     let points = sweep(log, cfg, eval)?;
     write_json(&out.join("sweep.json"), &points)?;
-    let mut csv = String::from("alpha,ge_scale,ms_per_frame,f1\n");
+    let mut csv = String::from("reward,alpha,ge_scale,ms_per_frame,f1\n");
     for p in &points {
         let _ = writeln!(
             csv,
-            "{},{},{:.4},{:.4}",
-            p.alpha, p.ge_scale, p.ms_per_frame, p.f1
+            "{},{},{},{:.4},{:.4}",
+            p.reward.name(),
+            p.alpha,
+            p.ge_scale,
+            p.ms_per_frame,
+            p.f1
         );
     }
     write_text(&out.join("sweep.csv"), &csv)?;
@@ -60,8 +64,12 @@ pub fn policy_table(p: &TrainedPolicy) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "policy (α {}, γ {}, value iteration {} sweeps, policy iteration agrees: {})",
-        p.config.alpha, p.config.gamma, p.iterations, p.policy_iteration_agrees
+        "policy ({} reward, α {}, γ {}, value iteration {} sweeps, policy iteration agrees: {})",
+        p.config.reward.name(),
+        p.config.alpha,
+        p.config.gamma,
+        p.iterations,
+        p.policy_iteration_agrees
     );
     let _ = writeln!(
         s,

@@ -1,11 +1,12 @@
-//! The speed/accuracy curve of policies: the MDP re-solved for a grid of `α` and
-//! `w_ge` scales on the same estimated transitions, each policy replayed without the
-//! tracker (a detection every frame) on held-out videos.
+//! The speed/accuracy curve of policies: the MDP re-solved for a grid of `α` on the
+//! same estimated transitions, for both rewards (and, for the paper's confidence
+//! reward, a grid of `w_ge` scales), each policy replayed without the tracker (a
+//! detection every frame) on held-out videos.
 
 use crate::error::Result;
 use crate::eval::{EvalConfig, Strategy, run_with_bundle};
 use crate::replay::{ReplayLog, VideoLog};
-use crate::train::{PolicyConfig, Transitions, solve};
+use crate::train::{PolicyConfig, Reward, Transitions, solve};
 use frugal_data::Split;
 use frugal_models::metrics::{ImageResult, Interpolation, evaluate};
 use serde::{Deserialize, Serialize};
@@ -13,9 +14,11 @@ use serde::{Deserialize, Serialize};
 /// One policy of the sweep.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SweepPoint {
+    /// The reward.
+    pub reward: Reward,
     /// `α`.
     pub alpha: f64,
-    /// `w_ge` multiplier.
+    /// `w_ge` multiplier (1 for the outcome reward, which has no weights).
     pub ge_scale: f64,
     /// Mean detector time per frame, ms.
     pub ms_per_frame: f64,
@@ -38,7 +41,7 @@ pub fn sweep_videos(log: &ReplayLog) -> Vec<&VideoLog> {
 
 /// Solve and score every (`α`, `w_ge` scale) of `cfg`'s sweep grid.
 pub fn sweep(log: &ReplayLog, cfg: &PolicyConfig, eval: &EvalConfig) -> Result<Vec<SweepPoint>> {
-    let transitions = Transitions::count(log, |v| v.split == Split::Train);
+    let transitions = Transitions::count(log, cfg.outcome_iou, |v| v.split == Split::Train);
     let videos = sweep_videos(log);
     let training: Vec<u32> = log.split(Split::Train).map(|v| v.id).collect();
     let scales = if cfg.sweep_ge_scale.is_empty() {
@@ -46,10 +49,15 @@ pub fn sweep(log: &ReplayLog, cfg: &PolicyConfig, eval: &EvalConfig) -> Result<V
     } else {
         cfg.sweep_ge_scale.clone()
     };
+    let grid = scales
+        .iter()
+        .map(|&sc| (Reward::Confidence, sc))
+        .chain([(Reward::Outcome, 1.0)]);
     let mut out = Vec::new();
-    for &ge_scale in &scales {
+    for (reward, ge_scale) in grid {
         for &alpha in &cfg.sweep_alpha {
             let mut c = cfg.clone();
+            c.reward = reward;
             c.alpha = alpha;
             c.weights.ge *= ge_scale;
             let policy = solve(log, &transitions, &c, training.clone())?;
@@ -67,6 +75,7 @@ pub fn sweep(log: &ReplayLog, cfg: &PolicyConfig, eval: &EvalConfig) -> Result<V
                 Interpolation::AllPoint,
             );
             out.push(SweepPoint {
+                reward,
                 alpha,
                 ge_scale,
                 ms_per_frame: if frames > 0 {

@@ -8,8 +8,14 @@
 //!   count for the next state `(b_{t+1}(a), a)`, where `b_t(v)` is the bucket of `v`'s
 //!   best score on frame `t`. Rows get additive smoothing `λ` over the four buckets of
 //!   the action's variant (the next variant is always the action).
-//! - Reward `R(s', w) = w(b') / r(a)^α` with `r` the cost relative to the cheapest
-//!   variant; `R(s, a)` is its expectation under the estimated row.
+//! - Reward `R(s', w) = w / r(a)^α` with `r` the cost relative to the cheapest
+//!   variant; `R(s, a)` is its expectation over the training transitions. The weight
+//!   `w` is chosen by [`Reward`]: the paper's weight of the confidence bucket reached,
+//!   `w(b')` ([`Reward::Confidence`]), or what the replay knows and the drone does not,
+//!   the next frame's F1 `w = 2tp / (2tp + fp + fn)` of the action's reported
+//!   detections against the ground truth ([`Reward::Outcome`], the default). The states
+//!   stay confidence buckets either way: the policy only looks at what the runtime can
+//!   see.
 //! - Solved by value iteration to the configured tolerance, cross-checked with policy
 //!   iteration.
 
@@ -59,11 +65,42 @@ impl Weights {
     }
 }
 
+/// What the weight `w` of the reward `w / r^α` is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Reward {
+    /// The paper's: the weight of the confidence bucket reached ([`Weights`]). It
+    /// rewards a variant for being *confident*, right or wrong.
+    Confidence,
+    /// The F1 of the next frame's reported detections against the replay's ground
+    /// truth: it rewards a variant for being *right*. The CNN variants are confidently
+    /// wrong often enough that only this one keeps the accuracy (README, section 5).
+    Outcome,
+}
+
+impl Reward {
+    /// `confidence` or `outcome`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Reward::Confidence => "confidence",
+            Reward::Outcome => "outcome",
+        }
+    }
+}
+
+/// Prior F1 of an outcome row with few samples: the smoothing pulls its mean reward
+/// towards this, with the weight of `λ` samples.
+pub const OUTCOME_PRIOR: f64 = 0.5;
+
 /// How the policy is estimated and solved. Every field has a built-in default; a
 /// TOML/JSON file may override any subset (unknown keys are rejected).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct PolicyConfig {
+    /// What the reward's weight is.
+    pub reward: Reward,
+    /// IoU at which a detection counts as right for [`Reward::Outcome`].
+    pub outcome_iou: f32,
     /// `α`: how strongly cost discounts the reward.
     pub alpha: f64,
     /// `γ`: the discount factor, in `[0, 1)`.
@@ -72,23 +109,28 @@ pub struct PolicyConfig {
     pub tolerance: f64,
     /// Additive smoothing `λ` per next bucket.
     pub smoothing: f64,
-    /// Reward weights.
+    /// Reward weights of [`Reward::Confidence`].
     pub weights: Weights,
-    /// The `α` values of the speed/accuracy sweep.
+    /// The `α` values of the speed/accuracy sweep (both rewards).
     pub sweep_alpha: Vec<f64>,
-    /// Multipliers of `w_ge` swept together with `α` (1 = the configured weights).
+    /// Multipliers of `w_ge` swept together with `α` for [`Reward::Confidence`]
+    /// (1 = the configured weights).
     pub sweep_ge_scale: Vec<f64>,
 }
 
 impl Default for PolicyConfig {
     fn default() -> Self {
         Self {
-            alpha: 1.0,
+            reward: Reward::Outcome,
+            outcome_iou: 0.5,
+            // outcome rewards live in [0, 1]: a variant 4× the cost must be right about
+            // 7 % more often to be chosen (4^0.05 ≈ 1.07)
+            alpha: 0.05,
             gamma: 0.9,
             tolerance: 1e-9,
             smoothing: 1.0,
             weights: Weights::default(),
-            sweep_alpha: vec![0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0],
+            sweep_alpha: vec![0.0, 0.05, 0.1, 0.2, 0.3, 0.5, 1.0, 2.0, 4.0],
             sweep_ge_scale: vec![0.25, 1.0, 4.0],
         }
     }
@@ -110,6 +152,9 @@ impl PolicyConfig {
         }
         if !(self.alpha.is_finite() && self.alpha >= 0.0) {
             return bad("alpha", format!("{} must be finite and >= 0", self.alpha));
+        }
+        if !(self.outcome_iou > 0.0 && self.outcome_iou <= 1.0) {
+            return bad("outcome_iou", format!("{} is outside (0, 1]", self.outcome_iou));
         }
         if !(self.tolerance > 0.0 && self.tolerance.is_finite()) {
             return bad("tolerance", format!("{} must be > 0", self.tolerance));
@@ -141,30 +186,44 @@ pub fn state(bucket: Bucket, variant: usize, v: usize) -> usize {
     bucket.index() * v + variant
 }
 
-/// Transition counts `counts[(a · S + s) · 4 + b']` for next state `(b', a)`.
+/// Transition counts `counts[(a · S + s) · 4 + b']` for next state `(b', a)`, and the
+/// summed next-frame F1 of every row.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Transitions {
     /// Number of variants `V` (states `4 V`, actions `V`).
     pub variants: usize,
     /// Raw counts.
     pub counts: Vec<u64>,
+    /// `f1[a · S + s]`: the sum over the row's transitions of the F1 of `a`'s reported
+    /// detections on the next frame ([`crate::eval::frame_f1`]).
+    pub f1: Vec<f64>,
 }
 
 impl Transitions {
-    /// Count the transitions of the videos of `log` for which `keep` holds.
-    pub fn count(log: &ReplayLog, keep: impl Fn(&crate::replay::VideoLog) -> bool) -> Self {
+    /// Count the transitions of the videos of `log` for which `keep` holds; a
+    /// detection is right at IoU ≥ `iou`.
+    pub fn count(
+        log: &ReplayLog,
+        iou: f32,
+        keep: impl Fn(&crate::replay::VideoLog) -> bool,
+    ) -> Self {
         let v_n = log.variants.len();
         let s_n = BUCKET_COUNT * v_n;
         let mut counts = vec![0u64; v_n * s_n * BUCKET_COUNT];
+        let mut f1 = vec![0.0; v_n * s_n];
         let buckets: Vec<_> = (0..v_n).map(|v| log.buckets(v).to_runtime()).collect();
         for video in log.videos.iter().filter(|v| keep(v)) {
-            for pair in video.frames.windows(2) {
-                let (now, next) = (&pair[0], &pair[1]);
+            for t in 1..video.frames.len() {
+                let (now, next) = (&video.frames[t - 1], &video.frames[t]);
+                let next_f1: Vec<f64> = (0..v_n)
+                    .map(|a| crate::eval::frame_f1(log, video, t, a, iou))
+                    .collect();
                 for v in 0..v_n {
                     let s = state(buckets[v].bucket(now.best_score(v)), v, v_n);
                     for a in 0..v_n {
                         let b2 = buckets[a].bucket(next.best_score(a));
                         counts[(a * s_n + s) * BUCKET_COUNT + b2.index()] += 1;
+                        f1[a * s_n + s] += next_f1[a];
                     }
                 }
             }
@@ -172,6 +231,19 @@ impl Transitions {
         Self {
             variants: v_n,
             counts,
+            f1,
+        }
+    }
+
+    /// The smoothed mean next-frame F1 of row `(s, a)`: `(Σ F1 + λ · prior) / (n + λ)`
+    /// with the prior [`OUTCOME_PRIOR`].
+    pub fn mean_f1(&self, s: usize, a: usize, smoothing: f64) -> f64 {
+        let s_n = BUCKET_COUNT * self.variants;
+        let n = self.samples(s, a) as f64;
+        if n + smoothing > 0.0 {
+            (self.f1[a * s_n + s] + smoothing * OUTCOME_PRIOR) / (n + smoothing)
+        } else {
+            OUTCOME_PRIOR
         }
     }
 
@@ -209,9 +281,12 @@ impl Transitions {
                 for b in Bucket::ALL {
                     let pr = self.prob(s, a, b.index(), cfg.smoothing);
                     p[(a * s_n + s) * s_n + state(b, a, v_n)] = pr;
-                    expected += pr * cfg.weights.of(b) / discount;
+                    expected += pr * cfg.weights.of(b);
                 }
-                r[s * v_n + a] = expected;
+                if cfg.reward == Reward::Outcome {
+                    expected = self.mean_f1(s, a, cfg.smoothing);
+                }
+                r[s * v_n + a] = expected / discount;
             }
         }
         Ok(Mdp::new(s_n, v_n, p, r)?)
@@ -285,7 +360,7 @@ impl TrainedPolicy {
 
 /// Estimate the MDP from `log`'s training videos and solve it.
 pub fn train(log: &ReplayLog, cfg: &PolicyConfig) -> Result<TrainedPolicy> {
-    let transitions = Transitions::count(log, |v| v.split == Split::Train);
+    let transitions = Transitions::count(log, cfg.outcome_iou, |v| v.split == Split::Train);
     let training_videos: Vec<u32> = log.split(Split::Train).map(|v| v.id).collect();
     if training_videos.is_empty() {
         return Err(PolicyError::invalid(

@@ -15,7 +15,7 @@ use frugal_policies::report::{
     evaluate_and_write, kul_tables, policy_table, score_table, train_and_write, write_per_class,
 };
 use frugal_policies::variants::{FrameDetector, RuntimeDetector, VariantSource, VariantsFile};
-use frugal_policies::{PolicyConfig, ReplayLog, TrainedPolicy, VariantSet};
+use frugal_policies::{PolicyConfig, ReplayLog, Reward, TrainedPolicy, VariantSet};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -114,6 +114,10 @@ struct TrainArgs {
     /// Policy config (TOML or JSON; unknown keys rejected; defaults built in).
     #[arg(long)]
     config: Option<PathBuf>,
+    /// Override the reward: `outcome` (next frame's F1 against the truth, the default)
+    /// or `confidence` (the paper's bucket weights).
+    #[arg(long, value_parser = ["outcome", "confidence"])]
+    reward: Option<String>,
     /// Override α.
     #[arg(long)]
     alpha: Option<f64>,
@@ -217,16 +221,10 @@ fn open_detector(
 }
 
 fn read_eval_config(path: Option<&Path>) -> anyhow::Result<EvalConfig> {
-    let Some(path) = path else {
-        return Ok(EvalConfig::default());
-    };
-    let text = std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
-    let cfg: EvalConfig = if path.extension().is_some_and(|e| e == "toml") {
-        toml::from_str(&text).with_context(|| format!("{}", path.display()))?
-    } else {
-        serde_json::from_str(&text).with_context(|| format!("{}", path.display()))?
-    };
-    Ok(cfg)
+    Ok(match path {
+        Some(path) => frugal_policies::error::read_toml_or_json(path)?,
+        None => EvalConfig::default(),
+    })
 }
 
 /// Run `frugal policy …`.
@@ -343,6 +341,13 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
                 Some(p) => PolicyConfig::read(p)?,
                 None => PolicyConfig::default(),
             };
+            if let Some(r) = &a.reward {
+                cfg.reward = if r == "confidence" {
+                    Reward::Confidence
+                } else {
+                    Reward::Outcome
+                };
+            }
             if let Some(x) = a.alpha {
                 cfg.alpha = x;
             }
@@ -355,8 +360,12 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
             println!("α sweep (no tracker, held-out videos):");
             for p in &sweep {
                 println!(
-                    "  α {:<5} w_ge×{:<5} {:>8.3} ms/frame  F1 {:.3}",
-                    p.alpha, p.ge_scale, p.ms_per_frame, p.f1
+                    "  {:<10} α {:<5} w_ge×{:<5} {:>8.3} ms/frame  F1 {:.3}",
+                    p.reward.name(),
+                    p.alpha,
+                    p.ge_scale,
+                    p.ms_per_frame,
+                    p.f1
                 );
             }
             println!("wrote {}", a.out.join("policy.json").display());

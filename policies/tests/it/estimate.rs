@@ -9,7 +9,7 @@ use frugal_policies::train::{Transitions, state, train};
 use frugal_policies::variants::{
     CNN_BUCKETS, FamilyInfo, SyntheticSpec, VariantInfo, VariantSource,
 };
-use frugal_policies::{PolicyConfig, ReplayLog};
+use frugal_policies::{PolicyConfig, ReplayLog, Reward};
 use frugal_runtime::bundle::Bucket;
 
 fn det(score: f32) -> Det {
@@ -72,7 +72,7 @@ fn hand_log() -> ReplayLog {
 fn transition_counts_of_a_hand_made_log() {
     use Bucket::*;
     let log = hand_log();
-    let t = Transitions::count(&log, |_| true);
+    let t = Transitions::count(&log, 0.5, |_| true);
     let s_n = 8;
     let count = |s: usize, a: usize, b: Bucket| t.counts[(a * s_n + s) * 4 + b.index()];
     // (f0 → f1): from (ge, a) and (opt, b); (f1 → f2): from (miss, a) and (opt, b).
@@ -102,7 +102,7 @@ fn transition_counts_of_a_hand_made_log() {
 #[test]
 fn smoothing_spreads_mass_over_the_actions_buckets() {
     let log = hand_log();
-    let t = Transitions::count(&log, |_| true);
+    let t = Transitions::count(&log, 0.5, |_| true);
     let opt_b = state(Bucket::Optimal, 1, 2);
     // counts (opt 1, ge 0, ua 1, miss 0) under λ = 1: (1+1)/(2+4) and (0+1)/(2+4).
     assert!((t.prob(opt_b, 1, 0, 1.0) - 2.0 / 6.0).abs() < 1e-12);
@@ -113,7 +113,11 @@ fn smoothing_spreads_mass_over_the_actions_buckets() {
     assert_eq!(t.prob(state(Bucket::Optimal, 0, 2), 0, 3, 0.0), 0.25);
     // The MDP's next state is always the action's variant, rows sum to one, and the
     // reward is the expectation of w / r^α.
-    let cfg = PolicyConfig::default();
+    let cfg = PolicyConfig {
+        reward: Reward::Confidence,
+        alpha: 1.0,
+        ..PolicyConfig::default()
+    };
     let mdp = t.mdp(&[1.0, 4.0], &cfg).unwrap();
     for s in 0..8 {
         for a in 0..2 {
@@ -166,19 +170,86 @@ fn alpha_sweep_trades_accuracy_for_cost_monotonically() {
         },
         ..PolicyConfig::default()
     };
-    let pts = sweep(&log, &cfg, &EvalConfig::default()).unwrap();
-    assert_eq!(pts.len(), 6);
-    for w in pts.windows(2) {
-        assert!(
-            w[1].ms_per_frame <= w[0].ms_per_frame + 1e-9,
-            "cost rose from α {} to α {}: {pts:#?}",
-            w[0].alpha,
-            w[1].alpha
-        );
+    let all = sweep(&log, &cfg, &EvalConfig::default()).unwrap();
+    assert_eq!(all.len(), 12, "6 α for each reward");
+    for reward in [Reward::Confidence, Reward::Outcome] {
+        let pts: Vec<_> = all.iter().filter(|p| p.reward == reward).collect();
+        assert_eq!(pts.len(), 6);
+        for w in pts.windows(2) {
+            assert!(
+                w[1].ms_per_frame <= w[0].ms_per_frame + 1e-9,
+                "{reward:?}: cost rose from α {} to α {}: {pts:#?}",
+                w[0].alpha,
+                w[1].alpha
+            );
+        }
+        let (first, last) = (pts[0], pts[pts.len() - 1]);
+        assert!(last.ms_per_frame < first.ms_per_frame, "{pts:#?}");
+        assert!(last.f1 <= first.f1 + 1e-9, "{pts:#?}");
     }
-    let (first, last) = (&pts[0], &pts[pts.len() - 1]);
-    assert!(last.ms_per_frame < first.ms_per_frame, "{pts:#?}");
-    assert!(last.f1 <= first.f1 + 1e-9, "{pts:#?}");
+}
+
+/// Four frames with one sign (class 0) each: the cheap variant is *confidently wrong*
+/// (class 1 at 0.95, the optimal bucket), the expensive one right at 0.7 (good enough).
+fn confidently_wrong_log() -> ReplayLog {
+    let mut log = hand_log();
+    let sign = Det {
+        class: 0,
+        score: 1.0,
+        bbox: [0.0, 0.0, 10.0, 10.0],
+    };
+    let wrong = Det {
+        class: 1,
+        ..det(0.95)
+    };
+    log.classes = 2;
+    log.videos[0].frames = (0..4)
+        .map(|i| FrameLog {
+            index: i,
+            truth: vec![sign],
+            detections: vec![vec![wrong], vec![det(0.7)]],
+        })
+        .collect();
+    log
+}
+
+#[test]
+fn outcome_reward_is_the_next_frames_f1_and_prefers_being_right_to_being_confident() {
+    let log = confidently_wrong_log();
+    let t = Transitions::count(&log, 0.5, |_| true);
+    // every pair starts from (opt, cheap) and (ge, expensive): 3 pairs each
+    let (opt_a, ge_b) = (
+        state(Bucket::Optimal, 0, 2),
+        state(Bucket::GoodEnough, 1, 2),
+    );
+    for s in [opt_a, ge_b] {
+        assert_eq!(t.samples(s, 0), 3);
+        // cheap: F1 0 on every next frame; smoothed towards the prior 0.5 by λ = 1
+        assert!((t.mean_f1(s, 0, 1.0) - 0.5 / 4.0).abs() < 1e-12);
+        assert!((t.mean_f1(s, 1, 1.0) - 3.5 / 4.0).abs() < 1e-12);
+        assert_eq!(t.mean_f1(s, 1, 0.0), 1.0);
+    }
+    // α = 1: the expensive variant is 4× dearer; the paper's reward takes the confident
+    // cheap variant, the outcome reward the right one.
+    let base = PolicyConfig {
+        alpha: 1.0,
+        ..PolicyConfig::default()
+    };
+    let confidence = train(
+        &log,
+        &PolicyConfig {
+            reward: Reward::Confidence,
+            ..base.clone()
+        },
+    )
+    .unwrap();
+    let outcome = train(&log, &base).unwrap();
+    assert_eq!(base.reward, Reward::Outcome, "the default");
+    assert_eq!(confidence.action(Bucket::Optimal, 0), 0);
+    assert_eq!(outcome.action(Bucket::Optimal, 0), 1);
+    assert_eq!(outcome.action(Bucket::GoodEnough, 1), 1);
+    let r = &outcome.mdp.r;
+    assert!((r[opt_a * 2 + 1] - (3.5 / 4.0) / 4.0).abs() < 1e-12, "{r:?}");
 }
 
 #[test]
@@ -213,11 +284,19 @@ fn replay_log_round_trips_and_rejects_a_wrong_version() {
 
 #[test]
 fn estimated_mdp_solves_the_same_in_pymdptoolbox() {
+    let (log, _) = log3();
+    for reward in [Reward::Confidence, Reward::Outcome] {
+        let cfg = PolicyConfig {
+            reward,
+            ..PolicyConfig::default()
+        };
+        same_in_pymdptoolbox(&train(&log, &cfg).unwrap(), &cfg);
+    }
+}
+
+fn same_in_pymdptoolbox(p: &frugal_policies::TrainedPolicy, cfg: &PolicyConfig) {
     use std::io::Write;
     use std::process::{Command, Stdio};
-    let (log, _) = log3();
-    let cfg = PolicyConfig::default();
-    let p = train(&log, &cfg).unwrap();
     let python =
         std::env::var_os("FRUGAL_PYTHON").expect("FRUGAL_PYTHON (set by cargo xtask setup)");
     let m = &p.mdp;

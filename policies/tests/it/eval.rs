@@ -2,7 +2,7 @@
 
 use super::fixture::log2;
 use frugal_data::Split;
-use frugal_policies::PolicyConfig;
+use frugal_policies::{PolicyConfig, Reward};
 use frugal_policies::eval::{EvalConfig, Strategy, run_all, scores};
 use frugal_policies::replay::VideoLog;
 use frugal_policies::report::evaluate_and_write;
@@ -11,7 +11,15 @@ use frugal_policies::train::train;
 #[test]
 fn strategies_run_and_the_oracle_is_never_slower_or_worse_than_static() {
     let (log, frames) = log2();
-    let policy = train(&log, &PolicyConfig::default()).unwrap();
+    // The paper's reward: in this fixture the cheap variant is confident exactly when
+    // it is right. (The outcome reward learns from (optimal, expensive) that the cheap
+    // one is blind in low light half the time, and stays expensive there.)
+    let paper = PolicyConfig {
+        reward: Reward::Confidence,
+        alpha: 1.0,
+        ..PolicyConfig::default()
+    };
+    let policy = train(&log, &paper).unwrap();
     let cfg = EvalConfig::default();
     let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
     let runs = run_all(&log, &policy, &videos, Some(&frames), &cfg, &Strategy::ALL).unwrap();
