@@ -116,9 +116,7 @@ pub type Result<T, E = PolicyError> = std::result::Result<T, E>;
 
 /// Read a serde file: TOML when the name ends in `.toml`, JSON otherwise; errors name
 /// the file.
-pub fn read_toml_or_json<T: serde::de::DeserializeOwned>(
-    path: &std::path::Path,
-) -> Result<T> {
+pub fn read_toml_or_json<T: serde::de::DeserializeOwned>(path: &std::path::Path) -> Result<T> {
     let text = std::fs::read_to_string(path).map_err(|e| PolicyError::io(path, e))?;
     let parsed = if path.extension().is_some_and(|e| e == "toml") {
         toml::from_str(&text).map_err(|e| e.to_string())

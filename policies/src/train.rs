@@ -154,7 +154,10 @@ impl PolicyConfig {
             return bad("alpha", format!("{} must be finite and >= 0", self.alpha));
         }
         if !(self.outcome_iou > 0.0 && self.outcome_iou <= 1.0) {
-            return bad("outcome_iou", format!("{} is outside (0, 1]", self.outcome_iou));
+            return bad(
+                "outcome_iou",
+                format!("{} is outside (0, 1]", self.outcome_iou),
+            );
         }
         if !(self.tolerance > 0.0 && self.tolerance.is_finite()) {
             return bad("tolerance", format!("{} must be > 0", self.tolerance));

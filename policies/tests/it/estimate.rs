@@ -249,7 +249,10 @@ fn outcome_reward_is_the_next_frames_f1_and_prefers_being_right_to_being_confide
     assert_eq!(outcome.action(Bucket::Optimal, 0), 1);
     assert_eq!(outcome.action(Bucket::GoodEnough, 1), 1);
     let r = &outcome.mdp.r;
-    assert!((r[opt_a * 2 + 1] - (3.5 / 4.0) / 4.0).abs() < 1e-12, "{r:?}");
+    assert!(
+        (r[opt_a * 2 + 1] - (3.5 / 4.0) / 4.0).abs() < 1e-12,
+        "{r:?}"
+    );
 }
 
 #[test]

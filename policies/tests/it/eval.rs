@@ -2,11 +2,11 @@
 
 use super::fixture::log2;
 use frugal_data::Split;
-use frugal_policies::{PolicyConfig, Reward};
 use frugal_policies::eval::{EvalConfig, Strategy, run_all, scores};
 use frugal_policies::replay::VideoLog;
 use frugal_policies::report::evaluate_and_write;
 use frugal_policies::train::train;
+use frugal_policies::{PolicyConfig, Reward};
 
 #[test]
 fn strategies_run_and_the_oracle_is_never_slower_or_worse_than_static() {
