@@ -627,9 +627,17 @@ pub fn fly(
                         s.peak >= need_f && odo >= s.at - trigger
                     })
                     .filter(|s| {
-                        // outvoted by another action read at the same spot: not yet
+                        // contradicted at the same spot (within the matching tolerance of
+                        // the farther reading) by another confirmed action last read
+                        // closer (a sign read close up, its arrow a larger box, is the
+                        // better reading; equally close: the better supported): not
+                        // this one
                         !sightings.iter().any(|o| {
-                            o.action != s.action && (o.at - s.at).abs() <= 1.0 && o.peak >= s.peak
+                            let tol = (0.5 + 0.15 * o.dist.max(s.dist)).max(1.0);
+                            o.action != s.action
+                                && (o.at - s.at).abs() <= tol
+                                && o.peak >= need_f
+                                && (o.dist < s.dist || (o.dist == s.dist && o.peak >= s.peak))
                         })
                     })
                     .max_by(|a, b| a.peak.total_cmp(&b.peak))
