@@ -49,9 +49,23 @@ fn record_train_eval_and_bundle_on_a_tiny_dataset() {
     .unwrap();
 
     let policy_dir = run.join("policy");
-    frugal(&["policy", "train", "--log", p(&log), "--out", p(&policy_dir)]).unwrap();
+    // the paper's reward and α, whose "good enough" bucket is the fast variant's range
+    frugal(&[
+        "policy",
+        "train",
+        "--log",
+        p(&log),
+        "--out",
+        p(&policy_dir),
+        "--reward",
+        "confidence",
+        "--alpha",
+        "1",
+    ])
+    .unwrap();
     let policy: serde_json::Value =
         serde_json::from_slice(&std::fs::read(policy_dir.join("policy.json")).unwrap()).unwrap();
+    assert_eq!(policy["config"]["reward"], "confidence");
     // Cheapest first; the policy keeps the fast variant while it is good enough.
     assert_eq!(policy["variants"][0]["name"], "fast");
     assert_eq!(policy["variants"][1]["relative_cost"], 4.0);
