@@ -202,14 +202,12 @@ impl Ctx {
     }
 
     /// The file a stage's command reads its config from, written now.
+    /// The file is the stage's config section, except for the detector, whose section
+    /// also names the device (a command-line flag, not part of the file).
     fn config_file(&self, name: &str) -> anyhow::Result<Option<PathBuf>> {
-        let c = &self.config;
         let value = match name {
-            "data" => serde_json::to_value(&c.data)?,
-            "detector" => serde_json::to_value(&c.detector)?,
-            "variants" => serde_json::to_value(&c.compress)?,
-            "policy" => serde_json::to_value(&c.policy)?,
-            "evaluation" => serde_json::to_value(&c.evaluation)?,
+            "detector" => serde_json::to_value(&self.config.detector)?,
+            "data" | "variants" | "policy" | "evaluation" => self.section(name)?,
             _ => return Ok(None),
         };
         let path = self.run.join("config").join(format!("{name}.json"));
