@@ -330,13 +330,10 @@ impl Config {
 /// Every scenario name `"<clutter>-clutter/<light>-light"`, as the evaluation reports them.
 pub fn scenario_names() -> Vec<String> {
     use frugal_data::{Clutter, Light};
-    let mut out = Vec::new();
-    for c in [Clutter::Low, Clutter::Medium, Clutter::High] {
-        for l in [Light::Normal, Light::Low] {
-            out.push(scenario_name(c, l));
-        }
-    }
-    out
+    Clutter::ALL
+        .into_iter()
+        .flat_map(|c| Light::ALL.map(|l| scenario_name(c, l)))
+        .collect()
 }
 
 /// The name of one scenario, `"<clutter>-clutter/<light>-light"`.

@@ -6,6 +6,7 @@
 use crate::error::{PolicyError, Result};
 use crate::eval::{ClassScore, FrameTrace, Score};
 use crate::sweep::SweepPoint;
+use crate::train::Reward;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
@@ -81,22 +82,21 @@ fn sweep_draw<DB: DrawingBackend>(
         .draw()
         .map_err(s)?;
     // one line per reward (and, for the confidence reward, per w_ge scale)
-    let mut series: Vec<(&str, f64)> = pts.iter().map(|p| (p.reward.name(), p.ge_scale)).collect();
-    series.sort_by(|a, b| a.0.cmp(b.0).then(a.1.total_cmp(&b.1)));
+    let mut series: Vec<(Reward, f64)> = pts.iter().map(|p| (p.reward, p.ge_scale)).collect();
+    series.sort_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)));
     series.dedup();
     for (i, &(reward, sc)) in series.iter().enumerate() {
         let color = Palette99::pick(i).to_rgba();
-        let of = |p: &&SweepPoint| p.reward.name() == reward && p.ge_scale == sc;
+        let of = |p: &&SweepPoint| p.reward == reward && p.ge_scale == sc;
         let mut line: Vec<(f64, f64)> = pts
             .iter()
             .filter(of)
             .map(|p| (p.ms_per_frame, p.f1))
             .collect();
         line.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let label = if reward == "confidence" {
-            format!("confidence reward, w_ge × {sc}")
-        } else {
-            format!("{reward} reward")
+        let label = match reward {
+            Reward::Confidence => format!("confidence reward, w_ge × {sc}"),
+            Reward::Outcome => "outcome reward".to_string(),
         };
         chart
             .draw_series(LineSeries::new(line, color.stroke_width(2)))

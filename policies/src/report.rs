@@ -6,8 +6,8 @@ use crate::eval::{
 };
 use crate::plot::{ClipSeries, plot_bars, plot_class_bars, plot_clip, plot_states, plot_sweep};
 use crate::replay::{Frames, ReplayLog, VideoLog};
-use crate::sweep::{SweepPoint, sweep};
-use crate::train::{PolicyConfig, TrainedPolicy, Weights, train};
+use crate::sweep::{SweepPoint, sweep_with};
+use crate::train::{PolicyConfig, TrainedPolicy, Transitions, Weights, train_with};
 use frugal_data::Split;
 use frugal_runtime::bundle::Bucket;
 use std::fmt::Write as _;
@@ -37,9 +37,11 @@ pub fn train_and_write(
     eval: &EvalConfig,
     out: &Path,
 ) -> Result<(TrainedPolicy, Vec<SweepPoint>)> {
-    let policy = train(log, cfg)?;
+    // counted once: the policy and every point of the sweep share the transitions
+    let transitions = Transitions::training(log, cfg);
+    let policy = train_with(log, &transitions, cfg)?;
     policy.save(&out.join("policy.json"))?;
-    let points = sweep(log, cfg, eval)?;
+    let points = sweep_with(log, &transitions, cfg, eval)?;
     write_json(&out.join("sweep.json"), &points)?;
     let mut csv = String::from("reward,alpha,ge_scale,ms_per_frame,f1\n");
     for p in &points {

@@ -41,7 +41,16 @@ pub fn sweep_videos(log: &ReplayLog) -> Vec<&VideoLog> {
 
 /// Solve and score every (`α`, `w_ge` scale) of `cfg`'s sweep grid.
 pub fn sweep(log: &ReplayLog, cfg: &PolicyConfig, eval: &EvalConfig) -> Result<Vec<SweepPoint>> {
-    let transitions = Transitions::count(log, cfg.outcome_iou, |v| v.split == Split::Train);
+    sweep_with(log, &Transitions::training(log, cfg), cfg, eval)
+}
+
+/// [`sweep`] on transitions already counted by [`Transitions::training`].
+pub fn sweep_with(
+    log: &ReplayLog,
+    transitions: &Transitions,
+    cfg: &PolicyConfig,
+    eval: &EvalConfig,
+) -> Result<Vec<SweepPoint>> {
     let videos = sweep_videos(log);
     let training: Vec<u32> = log.split(Split::Train).map(|v| v.id).collect();
     let scales = if cfg.sweep_ge_scale.is_empty() {
@@ -60,7 +69,7 @@ pub fn sweep(log: &ReplayLog, cfg: &PolicyConfig, eval: &EvalConfig) -> Result<V
             c.reward = reward;
             c.alpha = alpha;
             c.weights.ge *= ge_scale;
-            let policy = solve(log, &transitions, &c, training.clone())?;
+            let policy = solve(log, transitions, &c, training.clone())?;
             let bundle = crate::bundle::policy_bundle(&policy, eval.every_frame())?;
             let runs = run_with_bundle(log, &videos, Strategy::Mdp, &bundle, None, eval)?;
             let images: Vec<ImageResult> =

@@ -66,7 +66,7 @@ impl Weights {
 }
 
 /// What the weight `w` of the reward `w / r^α` is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Reward {
     /// The paper's: the weight of the confidence bucket reached ([`Weights`]). It
@@ -79,6 +79,14 @@ pub enum Reward {
 }
 
 impl Reward {
+    /// Both rewards.
+    pub const ALL: [Reward; 2] = [Reward::Confidence, Reward::Outcome];
+
+    /// The reward called `name` ([`Reward::name`]).
+    pub fn from_name(name: &str) -> Option<Reward> {
+        Reward::ALL.into_iter().find(|r| r.name() == name)
+    }
+
     /// `confidence` or `outcome`.
     pub fn name(self) -> &'static str {
         match self {
@@ -250,6 +258,11 @@ impl Transitions {
         }
     }
 
+    /// The transitions of `log`'s training videos, outcomes judged at `cfg`'s IoU.
+    pub fn training(log: &ReplayLog, cfg: &PolicyConfig) -> Self {
+        Self::count(log, cfg.outcome_iou, |v| v.split == Split::Train)
+    }
+
     /// Samples behind row `(s, a)`.
     pub fn samples(&self, s: usize, a: usize) -> u64 {
         let s_n = BUCKET_COUNT * self.variants;
@@ -280,16 +293,15 @@ impl Transitions {
         for a in 0..v_n {
             let discount = costs[a].powf(cfg.alpha);
             for s in 0..s_n {
-                let mut expected = 0.0;
-                for b in Bucket::ALL {
-                    let pr = self.prob(s, a, b.index(), cfg.smoothing);
+                let row = Bucket::ALL.map(|b| (b, self.prob(s, a, b.index(), cfg.smoothing)));
+                for (b, pr) in row {
                     p[(a * s_n + s) * s_n + state(b, a, v_n)] = pr;
-                    expected += pr * cfg.weights.of(b);
                 }
-                if cfg.reward == Reward::Outcome {
-                    expected = self.mean_f1(s, a, cfg.smoothing);
-                }
-                r[s * v_n + a] = expected / discount;
+                let w = match cfg.reward {
+                    Reward::Confidence => row.iter().map(|&(b, pr)| pr * cfg.weights.of(b)).sum(),
+                    Reward::Outcome => self.mean_f1(s, a, cfg.smoothing),
+                };
+                r[s * v_n + a] = w / discount;
             }
         }
         Ok(Mdp::new(s_n, v_n, p, r)?)
@@ -363,7 +375,15 @@ impl TrainedPolicy {
 
 /// Estimate the MDP from `log`'s training videos and solve it.
 pub fn train(log: &ReplayLog, cfg: &PolicyConfig) -> Result<TrainedPolicy> {
-    let transitions = Transitions::count(log, cfg.outcome_iou, |v| v.split == Split::Train);
+    train_with(log, &Transitions::training(log, cfg), cfg)
+}
+
+/// [`train`] on transitions already counted by [`Transitions::training`].
+pub fn train_with(
+    log: &ReplayLog,
+    transitions: &Transitions,
+    cfg: &PolicyConfig,
+) -> Result<TrainedPolicy> {
     let training_videos: Vec<u32> = log.split(Split::Train).map(|v| v.id).collect();
     if training_videos.is_empty() {
         return Err(PolicyError::invalid(
@@ -372,7 +392,7 @@ pub fn train(log: &ReplayLog, cfg: &PolicyConfig) -> Result<TrainedPolicy> {
             "the log has no training videos",
         ));
     }
-    solve(log, &transitions, cfg, training_videos)
+    solve(log, transitions, cfg, training_videos)
 }
 
 /// Solve the MDP of given transitions.

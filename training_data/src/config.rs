@@ -64,8 +64,8 @@ impl Default for GenConfig {
             seed: 2026,
             width: 480,
             height: 270,
-            clutter: vec![Clutter::Low, Clutter::Medium, Clutter::High],
-            light: vec![Light::Normal, Light::Low],
+            clutter: Clutter::ALL.to_vec(),
+            light: Light::ALL.to_vec(),
             // many short training clips: 360 approaches show the detector about ten
             // times more distinct signs than 30 long clips of the same frame budget;
             // validation and test clips stay long for the tracker and the policy

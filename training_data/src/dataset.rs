@@ -66,6 +66,9 @@ pub enum Clutter {
 }
 
 impl Clutter {
+    /// Every level, lowest first.
+    pub const ALL: [Clutter; 3] = [Clutter::Low, Clutter::Medium, Clutter::High];
+
     /// `low`, `medium` or `high`.
     pub fn name(self) -> &'static str {
         match self {
@@ -87,6 +90,9 @@ pub enum Light {
 }
 
 impl Light {
+    /// Every level, normal first.
+    pub const ALL: [Light; 2] = [Light::Normal, Light::Low];
+
     /// `normal` or `low`.
     pub fn name(self) -> &'static str {
         match self {

@@ -435,10 +435,7 @@ mod tests {
     fn higher_clutter_gives_busier_backgrounds() {
         let mut v = [0.0f32; 3];
         for seed in 0..6 {
-            for (i, clutter) in [Clutter::Low, Clutter::Medium, Clutter::High]
-                .into_iter()
-                .enumerate()
-            {
+            for (i, clutter) in Clutter::ALL.into_iter().enumerate() {
                 let mut rng = ChaCha8Rng::seed_from_u64(seed);
                 v[i] += variance(&draw_world(&mut rng, 160, 100, clutter));
             }

@@ -139,8 +139,8 @@ impl Default for SheetOptions {
 /// objects and, among those, the largest boxes.
 pub fn sheet_frames(ds: &Dataset, per_level: u32) -> Vec<&FrameRecord> {
     let mut out = Vec::new();
-    for clutter in [Clutter::Low, Clutter::Medium, Clutter::High] {
-        for light in [Light::Normal, Light::Low] {
+    for clutter in Clutter::ALL {
+        for light in Light::ALL {
             let mut by_split: Vec<Vec<u32>> = [Split::Test, Split::Train, Split::Val]
                 .iter()
                 .map(|&s| {

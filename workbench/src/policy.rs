@@ -116,8 +116,8 @@ struct TrainArgs {
     config: Option<PathBuf>,
     /// Override the reward: `outcome` (next frame's F1 against the truth, the default)
     /// or `confidence` (the paper's bucket weights).
-    #[arg(long, value_parser = ["outcome", "confidence"])]
-    reward: Option<String>,
+    #[arg(long, value_parser = parse_reward)]
+    reward: Option<Reward>,
     /// Override α.
     #[arg(long)]
     alpha: Option<f64>,
@@ -218,6 +218,10 @@ fn open_detector(
             format!("no detector for source {other:?}"),
         )),
     }
+}
+
+fn parse_reward(name: &str) -> Result<Reward, String> {
+    Reward::from_name(name).ok_or_else(|| format!("{name:?}: expected outcome or confidence"))
 }
 
 fn read_eval_config(path: Option<&Path>) -> anyhow::Result<EvalConfig> {
@@ -341,12 +345,8 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
                 Some(p) => PolicyConfig::read(p)?,
                 None => PolicyConfig::default(),
             };
-            if let Some(r) = &a.reward {
-                cfg.reward = if r == "confidence" {
-                    Reward::Confidence
-                } else {
-                    Reward::Outcome
-                };
+            if let Some(r) = a.reward {
+                cfg.reward = r;
             }
             if let Some(x) = a.alpha {
                 cfg.alpha = x;
