@@ -316,8 +316,8 @@ pub fn inspect(path: &Path) -> Result<String> {
     let _ = writeln!(s, "bundle {} ({} bytes)", file.display(), bytes.len());
     let _ = writeln!(
         s,
-        "thresholds: θ_th (IoU) {}  T_m (track quality) {}  N (MDP period) {}  M (re-init period) {}",
-        t.iou_threshold, t.min_track_quality, t.mdp_period, t.reinit_period
+        "thresholds: θ_th (IoU) {}  T_m (track quality) {}  N (MDP period) {}  M (re-init period) {}  MDP accesses per image {}",
+        t.iou_threshold, t.min_track_quality, t.mdp_period, t.reinit_period, t.accesses_per_image
     );
     let _ = writeln!(s, "families:");
     for i in 0..b.family_count() {

@@ -146,6 +146,8 @@ pub struct EvalConfig {
     pub mdp_period: u32,
     /// `M`.
     pub reinit_period: u32,
+    /// Most MDP accesses (detections) per image (paper 5; 1 turns them off).
+    pub accesses_per_image: u32,
     /// IoU for a correct detection (paper 0.5).
     pub eval_iou: f32,
     /// Most objects tracked at once.
@@ -162,6 +164,7 @@ impl Default for EvalConfig {
             min_track_quality: t.min_track_quality,
             mdp_period: t.mdp_period,
             reinit_period: t.reinit_period,
+            accesses_per_image: t.accesses_per_image,
             eval_iou: 0.5,
             max_tracks: 4,
             seed: 7,
@@ -177,6 +180,7 @@ impl EvalConfig {
             min_track_quality: self.min_track_quality,
             mdp_period: self.mdp_period,
             reinit_period: self.reinit_period,
+            accesses_per_image: self.accesses_per_image,
         }
     }
 
@@ -196,8 +200,12 @@ impl EvalConfig {
 pub struct FrameTrace {
     /// Frame index.
     pub frame: u32,
-    /// The variant run, `None` when the frame was tracked.
+    /// The variant whose detections the frame reports, `None` when it was tracked.
     pub detect: Option<u16>,
+    /// Variants run on this frame before `detect`, whose detections scored below
+    /// `T_c` (the paper's MDP accesses per image).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub tried: Vec<u16>,
     /// Why the detection ran (the controller's trigger), if it did.
     pub reason: Option<String>,
     /// The controller's state after the decision: `bucket · V + variant`.
@@ -420,6 +428,7 @@ fn run_controlled(
         let mut trace = FrameTrace {
             frame: f.index,
             detect: None,
+            tried: Vec::new(),
             reason: None,
             state: 0,
             tracked: 0,
@@ -480,7 +489,7 @@ fn run_controlled(
         });
         let shown: Vec<Detection> = match decision {
             Decision::Detect { variant, reason } => {
-                let variant = match random {
+                let mut variant = match random {
                     Some(_) => {
                         if reason != frugal_runtime::Trigger::Reinit {
                             random_variant = rng.random_range(0..v_n) as u16;
@@ -489,10 +498,22 @@ fn run_controlled(
                     }
                     None => variant,
                 };
+                trace.reason = Some(format!("{reason:?}"));
+                // the paper's MDP accesses per image: while the detection scores below
+                // T_c, the policy's next choice runs on the same frame (the random
+                // strategy has no policy to ask)
+                loop {
+                    score = video.frames[fi].best_score(usize::from(variant));
+                    match ctl.detected(score) {
+                        frugal_runtime::Access::Again(next) if random.is_none() => {
+                            trace.tried.push(variant);
+                            variant = next;
+                        }
+                        _ => break,
+                    }
+                }
                 let v = usize::from(variant);
                 trace.detect = Some(variant);
-                trace.reason = Some(format!("{reason:?}"));
-                score = video.frames[fi].best_score(v);
                 let dets = reported(log, video, fi, v);
                 if tracker.is_some() {
                     tracks.clear();
@@ -563,6 +584,7 @@ fn run_oracle(log: &ReplayLog, video: &VideoLog, fallback: usize, cfg: &EvalConf
         out.frames.push(FrameTrace {
             frame: f.index,
             detect: Some(v as u16),
+            tried: Vec::new(),
             reason: Some("Oracle".into()),
             state: bucket.index() * v_n + v,
             tracked: 0,
@@ -701,7 +723,10 @@ fn run_timed(
             for t in &mut run.frames {
                 t.time_ms = t
                     .detect
-                    .map_or(0.0, |v| log.variants[usize::from(v)].latency_ms);
+                    .iter()
+                    .chain(&t.tried)
+                    .map(|&v| log.variants[usize::from(v)].latency_ms)
+                    .sum();
             }
             Ok(run)
         })
@@ -796,8 +821,8 @@ fn score(
         detections: runs
             .iter()
             .flat_map(|r| &r.frames)
-            .filter(|t| t.detect.is_some())
-            .count(),
+            .map(|t| usize::from(t.detect.is_some()) + t.tried.len())
+            .sum(),
     }
 }
 

@@ -13,7 +13,7 @@
 use frugal_runtime::onnx::OrtDetector;
 use frugal_runtime::pilot::Pilot;
 use frugal_runtime::track::{Pyramid, rgb_to_gray};
-use frugal_runtime::{Bundle, Decision, FrameRef};
+use frugal_runtime::{Access, Bundle, Decision, FrameRef};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -50,6 +50,7 @@ fn main() -> Result<(), Error> {
     let (mut prev_buf, mut cur_buf, mut gray) = (Vec::new(), Vec::new(), Vec::new());
     let mut size = (0usize, 0usize);
     let mut per_variant = vec![0u32; bundle.variant_count()];
+    let mut tracked = 0u32;
     let mut compute_ms = 0.0;
     for (t, path) in frames.iter().enumerate() {
         let img = image::open(path)
@@ -75,22 +76,31 @@ fn main() -> Result<(), Error> {
         let decision = pilot.decide(t as u32, prev.as_ref(), &cur);
         let line = match decision {
             Decision::Detect { variant, reason } => {
-                let v = usize::from(variant);
-                let info = bundle
-                    .variant(variant)
-                    .ok_or("policy names a missing variant")?;
-                let slot = detectors.get_mut(v).ok_or("variant out of range")?;
-                if slot.is_none() {
-                    let graph = bundle_dir.join(info.onnx_file);
-                    let dir = graph.parent().ok_or("variant without an ONNX folder")?;
-                    *slot = Some(OrtDetector::open(dir, threads)?);
-                }
-                let det = slot.as_mut().ok_or("detector not opened")?;
-                let found = det.detect(frame)?;
-                pilot.detected(&cur, &found);
-                if let Some(n) = per_variant.get_mut(v) {
-                    *n += 1;
-                }
+                // the first variant, then any the policy asks for on the same frame
+                let mut variant = variant;
+                let mut run = Vec::new();
+                let found = loop {
+                    let v = usize::from(variant);
+                    let info = bundle
+                        .variant(variant)
+                        .ok_or("policy names a missing variant")?;
+                    let slot = detectors.get_mut(v).ok_or("variant out of range")?;
+                    if slot.is_none() {
+                        let graph = bundle_dir.join(info.onnx_file);
+                        let dir = graph.parent().ok_or("variant without an ONNX folder")?;
+                        *slot = Some(OrtDetector::open(dir, threads)?);
+                    }
+                    let det = slot.as_mut().ok_or("detector not opened")?;
+                    let found = det.detect(frame)?;
+                    if let Some(n) = per_variant.get_mut(v) {
+                        *n += 1;
+                    }
+                    run.push(info.name);
+                    match pilot.detected(&cur, &found) {
+                        Access::Again(next) => variant = next,
+                        Access::Done => break found,
+                    }
+                };
                 let best = found.first().map_or("nothing".to_string(), |d| {
                     format!(
                         "class {} score {:.3} box {:.0?}",
@@ -99,9 +109,10 @@ fn main() -> Result<(), Error> {
                         [d.bbox.x1, d.bbox.y1, d.bbox.x2, d.bbox.y2]
                     )
                 });
-                format!("detect  {:<20} ({reason:?}) {best}", info.name)
+                format!("detect  {:<20} ({reason:?}) {best}", run.join(" → "))
             }
             Decision::Track => {
+                tracked += 1;
                 let boxes: Vec<String> = pilot
                     .tracked()
                     .map(|d| {
@@ -135,8 +146,7 @@ fn main() -> Result<(), Error> {
     let stats = pilot.controller().stats();
     println!(
         "  {} frames tracked, {} policy queries",
-        stats.frames - stats.detections,
-        stats.queries
+        tracked, stats.queries
     );
     Ok(())
 }

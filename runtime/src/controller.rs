@@ -10,7 +10,11 @@
 //!   family scale, current variant) and the action is the variant to run next;
 //! - otherwise a detection with the current variant re-initialises the tracker every
 //!   `M` frames;
-//! - otherwise the frame is tracked.
+//! - otherwise the frame is tracked;
+//! - after any detection that scored below `T_c` (or found nothing), the policy is
+//!   asked again at once and its choice runs on the same image ([`Controller::detected`]),
+//!   up to the bundle's accesses per image (paper: 5) and never twice with one variant
+//!   on one image (the detectors are deterministic, so a repeat would only cost time).
 //!
 //! The calling loop, per frame `t`:
 //!
@@ -19,10 +23,15 @@
 //! 2. `controller.step(&Observation { frame: t, score, track })`, where `score` is the
 //!    best score of the detection that the previous [`Decision::Detect`] asked for
 //!    (`None` when it found nothing; ignored after [`Decision::Track`]);
-//! 3. on [`Decision::Detect`], run that variant on frame `t` and (re)initialise the
-//!    tracker on its best box; on [`Decision::Track`], report the tracker's box.
+//! 3. on [`Decision::Detect`], run that variant on frame `t` and hand its best score to
+//!    [`Controller::detected`]; while it answers [`Access::Again`], run that variant on
+//!    the same frame and hand its score over in turn. Then (re)initialise the tracker on
+//!    the last detection's best box; on [`Decision::Track`], report the tracker's box.
+//!
+//! A caller that never calls [`Controller::detected`] passes the score in the next
+//! [`Observation`] instead and gets one detection per image.
 
-use crate::bundle::{Bucket, Bundle, Thresholds};
+use crate::bundle::{Bucket, Bundle, MAX_ACCESSES, Thresholds};
 use crate::geom::{BBox, VariantId};
 
 /// `a < b`, with NaN on either side counting as below (a NaN IoU or quality is not trusted).
@@ -95,6 +104,15 @@ pub enum Decision {
     Track,
 }
 
+/// The answer to [`Controller::detected`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Access {
+    /// The image is done: report (and track) the last detection.
+    Done,
+    /// The last detection scored below `T_c`: run this variant on the same image.
+    Again(VariantId),
+}
+
 /// Counters since construction (for replay reports).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Stats {
@@ -117,6 +135,9 @@ pub struct Controller<'a> {
     started: bool,
     last_query: u32,
     last_detection: u32,
+    /// Variants run on the current image, in order; `accesses` of them are valid.
+    tried: [VariantId; MAX_ACCESSES as usize],
+    accesses: usize,
     stats: Stats,
 }
 
@@ -134,6 +155,8 @@ impl<'a> Controller<'a> {
             started: false,
             last_query: 0,
             last_detection: 0,
+            tried: [0; MAX_ACCESSES as usize],
+            accesses: 0,
             stats: Stats {
                 frames: 0,
                 detections: 0,
@@ -233,11 +256,47 @@ impl<'a> Controller<'a> {
                 self.awaiting_detection = true;
                 self.last_detection = obs.frame;
                 self.stats.detections = self.stats.detections.wrapping_add(1);
+                self.tried[0] = self.variant;
+                self.accesses = 1;
                 Decision::Detect {
                     variant: self.variant,
                     reason,
                 }
             }
         }
+    }
+
+    /// The best score of the detection just run on the current image (`None`: it found
+    /// nothing). When it is below the variant's `T_c`, the policy is asked again from
+    /// (bucket of this score, this variant) and [`Access::Again`] names the variant to
+    /// run on the same image, unless the image already had its accesses per image or
+    /// the policy names a variant already run on it. Called without a pending
+    /// detection, it only records the score and answers [`Access::Done`].
+    pub fn detected(&mut self, score: Option<f32>) -> Access {
+        self.awaiting_detection = false;
+        self.score = score;
+        let limit = (self.thresholds.accesses_per_image as usize).min(self.tried.len());
+        let t_c = self
+            .bundle
+            .variant_buckets(self.variant)
+            .map_or(f32::NEG_INFINITY, |b| b.t_c);
+        if self.accesses == 0 || self.accesses >= limit || score.is_some_and(|s| s >= t_c) {
+            self.accesses = 0;
+            return Access::Done;
+        }
+        let next = self.lookup(score, self.variant);
+        self.stats.queries = self.stats.queries.wrapping_add(1);
+        let tried = self.tried.get(..self.accesses).unwrap_or(&[]);
+        if tried.contains(&next) {
+            self.accesses = 0;
+            return Access::Done;
+        }
+        if let Some(slot) = self.tried.get_mut(self.accesses) {
+            *slot = next;
+        }
+        self.accesses += 1;
+        self.variant = next;
+        self.stats.detections = self.stats.detections.wrapping_add(1);
+        Access::Again(next)
     }
 }

@@ -67,6 +67,6 @@ pub mod synth;
 pub mod track;
 
 pub use bundle::{Bundle, BundleError, Thresholds};
-pub use controller::{Controller, Decision, Observation, TrackStatus, Trigger};
+pub use controller::{Access, Controller, Decision, Observation, TrackStatus, Trigger};
 pub use geom::{BBox, ClassId, Detection, Detector, FrameRef, VariantId};
 pub use track::{Tracker, TrackerParams};

@@ -8,7 +8,9 @@
 //!    tells the controller the worst IoU against its detection and the worst point
 //!    quality, and returns its [`Decision`];
 //! 2. on [`Decision::Detect`], run that variant on the frame and hand its detections
-//!    (best first) to [`Pilot::detected`], which re-initialises the trackers;
+//!    (best first) to [`Pilot::detected`], which re-initialises the trackers; while it
+//!    answers [`Access::Again`] (the detection scored below `T_c`), run the variant it
+//!    names on the same frame and hand those detections over too;
 //! 3. on [`Decision::Track`], [`Pilot::tracked`] gives the tracked boxes with the
 //!    class and score of the detection each one started from.
 //!
@@ -17,7 +19,7 @@
 //! use frugal_runtime::bundle::{ScoreBuckets, Thresholds};
 //! use frugal_runtime::pilot::Pilot;
 //! use frugal_runtime::track::Pyramid;
-//! use frugal_runtime::{Bundle, Decision};
+//! use frugal_runtime::{Access, Bundle, Decision};
 //!
 //! let bytes = BundleWriter::new(Thresholds::PAPER)
 //!     .family(FamilySpec { name: "cnn".into(), buckets: ScoreBuckets::PAPER_SVM })
@@ -30,13 +32,14 @@
 //! let mut buf = vec![0u8; Pyramid::required_len(w, h, 3).unwrap()];
 //! let pyr = Pyramid::new(&mut buf, w, h, 3)?;
 //! assert!(matches!(pilot.decide(0, None, &pyr), Decision::Detect { variant: 0, .. }));
-//! pilot.detected(&pyr, &[]); // the detector found nothing
+//! // the detector found nothing; the policy keeps the only variant, so the image is done
+//! assert_eq!(pilot.detected(&pyr, &[]), Access::Done);
 //! assert_eq!(pilot.tracked().count(), 0);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
 use crate::bundle::Bundle;
-use crate::controller::{Controller, Decision, Observation, TrackStatus};
+use crate::controller::{Access, Controller, Decision, Observation, TrackStatus};
 use crate::geom::{BBox, Detection};
 use crate::track::{Pyramid, Tracker, TrackerParams};
 
@@ -54,7 +57,6 @@ pub struct Pilot<'b, const TRACKS: usize, const POINTS: usize> {
     controller: Controller<'b>,
     held: [Held<POINTS>; TRACKS],
     active: usize,
-    score: Option<f32>,
 }
 
 impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
@@ -73,7 +75,6 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
                 }
             }; TRACKS],
             active: 0,
-            score: None,
         }
     }
 
@@ -135,9 +136,10 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
                 s.quality = worst.1;
             }
         }
+        // the score went to the controller in `detected`
         self.controller.step(&Observation {
             frame,
-            score: self.score,
+            score: None,
             track: status,
         })
     }
@@ -151,12 +153,13 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
             .map_or(f32::NEG_INFINITY, |b| b.t_c)
     }
 
-    /// Hand over the detections (best first) that the last [`Decision::Detect`] asked
-    /// for, found on the frame whose pyramid is `cur`: the best score goes to the
-    /// controller on the next frame, and up to `TRACKS` of the reported boxes (those
-    /// scoring at least [`Pilot::report_score`]) are tracked from here.
-    pub fn detected(&mut self, cur: &Pyramid<'_>, detections: &[Detection]) {
-        self.score = detections.first().map(|d| d.score);
+    /// Hand over the detections (best first) that the last [`Decision::Detect`] (or
+    /// [`Access::Again`]) asked for, found on the frame whose pyramid is `cur`: up to
+    /// `TRACKS` of the reported boxes (those scoring at least [`Pilot::report_score`]
+    /// of the variant that found them) are tracked from here, and the best score goes
+    /// to the controller, whose answer is returned: [`Access::Again`] asks for another
+    /// variant on the same frame.
+    pub fn detected(&mut self, cur: &Pyramid<'_>, detections: &[Detection]) -> Access {
         self.active = 0;
         let t_c = self.report_score();
         for d in detections.iter().filter(|d| d.score >= t_c).take(TRACKS) {
@@ -169,6 +172,8 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
                 self.active += 1;
             }
         }
+        self.controller
+            .detected(detections.first().map(|d| d.score))
     }
 
     /// The tracked boxes, with the class and score of the detection each started from.

@@ -7,7 +7,7 @@ use frugal_runtime::bundle::{ScoreBuckets, Thresholds};
 use frugal_runtime::pilot::Pilot;
 use frugal_runtime::synth::{ClipSpec, make_clip};
 use frugal_runtime::track::{GrayImage, Pyramid, Tracker, TrackerParams};
-use frugal_runtime::{Bundle, Controller, Decision, Detection, Observation, TrackStatus};
+use frugal_runtime::{Access, Bundle, Controller, Decision, Detection, Observation, TrackStatus};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -164,7 +164,7 @@ fn the_pilot_loop_allocates_nothing_and_follows_two_signs() {
     let mut prev = Pyramid::new(&mut wa, w, h, 3).unwrap();
     let mut next = Pyramid::new(&mut wb, w, h, 3).unwrap();
     let (mut detections, mut tracked_frames, mut worst_iou) = (0u32, 0u32, 1.0f32);
-    let mut unreported = 0;
+    let (mut unreported, mut again) = (0, 0);
     for frame in 0..2_000u32 {
         // forward through the clip, then start over (a cut: the tracker must cope)
         let i = frame as usize % clip.frames.len();
@@ -172,8 +172,7 @@ fn the_pilot_loop_allocates_nothing_and_follows_two_signs() {
             .unwrap();
         let have_prev = frame > 0 && i > 0;
         match pilot.decide(frame, have_prev.then_some(&prev), &next) {
-            Decision::Detect { .. } => {
-                detections += 1;
+            Decision::Detect { variant, .. } => {
                 // the "detector": the sign's true box, and a second, static one
                 let found = [
                     Detection {
@@ -194,7 +193,25 @@ fn the_pilot_loop_allocates_nothing_and_follows_two_signs() {
                         class: 5,
                     },
                 ];
-                pilot.detected(&next, &found);
+                // every fourth run of the small variant is unsure (below T_c): the
+                // policy's next choice runs on the same frame
+                let unsure = [Detection {
+                    bbox: clip.boxes[i],
+                    score: 0.4,
+                    class: 3,
+                }];
+                let mut variant = variant;
+                loop {
+                    detections += 1;
+                    let weak = variant == 0 && detections % 4 == 0;
+                    match pilot.detected(&next, if weak { &unsure } else { &found }) {
+                        Access::Again(v) => {
+                            again += 1;
+                            variant = v;
+                        }
+                        Access::Done => break,
+                    }
+                }
             }
             Decision::Track => {
                 tracked_frames += 1;
@@ -213,6 +230,7 @@ fn the_pilot_loop_allocates_nothing_and_follows_two_signs() {
         "{allocations} allocations in 2,000 pilot frames"
     );
     assert_eq!(unreported, 0, "a detection below T_c was tracked");
+    assert!(again >= 10, "{again} second detections on one image");
     assert!(
         tracked_frames > 1_500 && detections >= 150,
         "tracked {tracked_frames}, detections {detections}"

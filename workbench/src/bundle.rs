@@ -34,6 +34,10 @@ enum BundleCommand {
         /// M: re-initialise the tracker every M frames.
         #[arg(long, default_value_t = 10)]
         reinit_period: u32,
+        /// Most MDP accesses (detections) per image: after a detection below T_c the
+        /// policy's next choice runs on the same image (paper: 5; 1 turns this off).
+        #[arg(long, default_value_t = 5)]
+        accesses_per_image: u32,
     },
     /// Check a bundle (folder or file): the runtime parses it and every referenced file
     /// hashes to the bundle's SHA-256.
@@ -57,12 +61,14 @@ pub fn run(args: BundleArgs) -> anyhow::Result<()> {
             iou_threshold,
             mdp_period,
             reinit_period,
+            accesses_per_image,
         } => {
             let p = TrainedPolicy::load(&policy)?;
             let mut th = EvalConfig::default().thresholds();
             th.iou_threshold = iou_threshold;
             th.mdp_period = mdp_period;
             th.reinit_period = reinit_period;
+            th.accesses_per_image = accesses_per_image;
             if !th.is_valid() {
                 anyhow::bail!("thresholds out of range: {th:?}");
             }

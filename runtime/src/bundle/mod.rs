@@ -19,7 +19,7 @@
 //! | offset | size | type | field |
 //! |-------:|-----:|------|-------|
 //! | 0  | 4 | u32 | magic `0x4250_5246` — the bytes `"FRPB"`; the byte-swapped value (`"BPRF"`) means a big-endian writer: [`BundleError::WrongEndian`] |
-//! | 4  | 2 | u16 | format version, [`FORMAT_VERSION`] = 1 |
+//! | 4  | 2 | u16 | format version, [`FORMAT_VERSION`] = 2 |
 //! | 6  | 2 | u16 | section count `n`, 1 ..= [`MAX_SECTIONS`] |
 //! | 8  | 4 | u32 | total file length in bytes (must equal the input length) |
 //! | 12 | 4 | u32 | CRC-32 (IEEE, as zlib) of the whole file with these 4 bytes taken as zero |
@@ -40,7 +40,7 @@
 //! A string is referenced by a u32 offset into its section's *pool* (the bytes after the
 //! section's records). At that offset: a u16 byte length `L`, then `L` bytes of UTF-8.
 //!
-//! ## 1 — Thresholds and periods (exactly 16 bytes), see [`Thresholds`]
+//! ## 1 — Thresholds and periods (exactly 20 bytes), see [`Thresholds`]
 //!
 //! | offset | size | type | field |
 //! |-------:|-----:|------|-------|
@@ -48,6 +48,7 @@
 //! | 4  | 4 | f32 | `T_m`: least fraction of the tracker's points still tracked for the track to be trusted, in `[0, 1]` |
 //! | 8  | 4 | u32 | `N`: re-run the MDP policy every `N` frames (paper 100), `>= 1` |
 //! | 12 | 4 | u32 | `M`: re-initialise the tracker from a detection every `M` frames (paper 10), `>= 1` |
+//! | 16 | 4 | u32 | most MDP accesses (detections) per image (paper 5), 1 ..= [`MAX_ACCESSES`] |
 //!
 //! ## 2 — Detector families and their confidence buckets, see [`Family`]
 //!
@@ -106,8 +107,8 @@ use core::fmt;
 
 /// The magic number, stored little-endian as the bytes `"FRPB"`.
 pub const MAGIC: u32 = 0x4250_5246;
-/// The format version this reader understands.
-pub const FORMAT_VERSION: u16 = 1;
+/// The format version this reader understands (2 added the accesses per image).
+pub const FORMAT_VERSION: u16 = 2;
 /// Header length in bytes.
 pub const HEADER_LEN: usize = 16;
 /// Section table entry length in bytes.
@@ -118,11 +119,13 @@ pub const MAX_SECTIONS: usize = 16;
 pub const BUCKET_COUNT: usize = 4;
 /// Most detector families a bundle may have.
 pub const MAX_FAMILIES: usize = 256;
+/// Most MDP accesses per image a bundle may ask for.
+pub const MAX_ACCESSES: u32 = 16;
 
 const FAMILY_RECORD: usize = 20;
 const VARIANT_RECORD: usize = 52;
 const META_RECORD: usize = 8;
-const THRESHOLDS_LEN: usize = 16;
+const THRESHOLDS_LEN: usize = 20;
 const POLICY_HEADER: usize = 8;
 
 /// Section kinds of format version 1.
@@ -246,6 +249,10 @@ pub struct Thresholds {
     pub mdp_period: u32,
     /// `M`: the tracker is re-initialised from a fresh detection every `M` frames (paper: 10).
     pub reinit_period: u32,
+    /// Most MDP accesses per image (paper: 5): when a detection scores below its
+    /// family's `T_c`, the policy is asked again and its choice runs on the *same*
+    /// image, up to this many detections in all (1: never on the same image).
+    pub accesses_per_image: u32,
 }
 
 impl Thresholds {
@@ -255,6 +262,7 @@ impl Thresholds {
         min_track_quality: 0.3,
         mdp_period: 100,
         reinit_period: 10,
+        accesses_per_image: 5,
     };
 
     /// True when every field is in range (what the reader and writer accept).
@@ -263,6 +271,7 @@ impl Thresholds {
             && (0.0..=1.0).contains(&self.min_track_quality)
             && self.mdp_period >= 1
             && self.reinit_period >= 1
+            && (1..=MAX_ACCESSES).contains(&self.accesses_per_image)
     }
 }
 
@@ -702,6 +711,7 @@ fn parse_thresholds(b: &[u8]) -> Result<Thresholds, BundleError> {
             min_track_quality: rd_f32(b, 4)?,
             mdp_period: rd_u32(b, 8)?,
             reinit_period: rd_u32(b, 12)?,
+            accesses_per_image: rd_u32(b, 16)?,
         })
     })()
     .ok_or(BundleError::BadSectionLength)?;

@@ -183,11 +183,12 @@ impl BundleWriter {
 
     fn sections(&self) -> Result<[(SectionKind, Vec<u8>); 5], WriteError> {
         let t = &self.thresholds;
-        let mut th = Vec::with_capacity(16);
+        let mut th = Vec::with_capacity(20);
         th.extend_from_slice(&t.iou_threshold.to_le_bytes());
         th.extend_from_slice(&t.min_track_quality.to_le_bytes());
         th.extend_from_slice(&t.mdp_period.to_le_bytes());
         th.extend_from_slice(&t.reinit_period.to_le_bytes());
+        th.extend_from_slice(&t.accesses_per_image.to_le_bytes());
 
         let mut fam = Body::new(self.families.len())?;
         for f in &self.families {

@@ -1,6 +1,6 @@
 use frugal_runtime::bundle::write::{BundleWriter, FamilySpec, VariantSpec, WriteError};
 use frugal_runtime::bundle::{
-    BUCKET_COUNT, Bucket, Bundle, BundleError, FORMAT_VERSION, HEADER_LEN, MAGIC,
+    BUCKET_COUNT, Bucket, Bundle, BundleError, FORMAT_VERSION, HEADER_LEN, MAGIC, MAX_ACCESSES,
     SECTION_ENTRY_LEN, ScoreBuckets, Thresholds,
 };
 use frugal_runtime::crc::{Crc32, crc32};
@@ -22,6 +22,7 @@ fn writer() -> BundleWriter {
         min_track_quality: 0.25,
         mdp_period: 90,
         reinit_period: 12,
+        accesses_per_image: 3,
     })
     .family(FamilySpec {
         name: "cnn".into(),
@@ -98,7 +99,8 @@ fn round_trip_keeps_every_field() {
             iou_threshold: 0.45,
             min_track_quality: 0.25,
             mdp_period: 90,
-            reinit_period: 12
+            reinit_period: 12,
+            accesses_per_image: 3,
         }
     );
     assert_eq!(b.family_count(), 2);
@@ -320,6 +322,24 @@ fn writer_rejects_what_the_reader_would() {
         period.unwrap_err(),
         WriteError::Invalid(BundleError::BadValue)
     );
+    for accesses in [0, MAX_ACCESSES + 1] {
+        let bad = BundleWriter::new(Thresholds {
+            accesses_per_image: accesses,
+            ..Thresholds::PAPER
+        })
+        .family(FamilySpec {
+            name: "cnn".into(),
+            buckets: CNN,
+        })
+        .variant(VariantSpec::new("a", 0, 1.0, 1.0))
+        .policy(0, vec![0; BUCKET_COUNT])
+        .finish();
+        assert_eq!(
+            bad.unwrap_err(),
+            WriteError::Invalid(BundleError::BadValue),
+            "{accesses} accesses per image"
+        );
+    }
     let no_policy = BundleWriter::new(Thresholds::PAPER)
         .family(FamilySpec {
             name: "cnn".into(),
@@ -359,9 +379,10 @@ fn score_buckets_follow_the_paper() {
         (
             Thresholds::PAPER.iou_threshold,
             Thresholds::PAPER.mdp_period,
-            Thresholds::PAPER.reinit_period
+            Thresholds::PAPER.reinit_period,
+            Thresholds::PAPER.accesses_per_image
         ),
-        (0.5, 100, 10)
+        (0.5, 100, 10, 5)
     );
 }
 

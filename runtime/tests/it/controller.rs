@@ -2,7 +2,9 @@ use frugal_runtime::bundle::write::{BundleWriter, FamilySpec, VariantSpec};
 use frugal_runtime::bundle::{Bucket, ScoreBuckets, Thresholds};
 use frugal_runtime::synth::{ClipSpec, make_clip};
 use frugal_runtime::track::{GrayImage, Pyramid, Tracker, TrackerParams};
-use frugal_runtime::{BBox, Bundle, Controller, Decision, Observation, TrackStatus, Trigger};
+use frugal_runtime::{
+    Access, BBox, Bundle, Controller, Decision, Observation, TrackStatus, Trigger,
+};
 
 const CNN: ScoreBuckets = ScoreBuckets {
     c_opt: 0.9,
@@ -78,6 +80,7 @@ fn the_paper_loop_triggers_in_order() {
         min_track_quality: 0.3,
         mdp_period: 30,
         reinit_period: 10,
+        accesses_per_image: 1,
     };
     let bytes = bundle_bytes(th);
     let mut c = Controller::new(Bundle::parse(&bytes).unwrap());
@@ -234,4 +237,61 @@ fn closed_loop_on_a_clip_mostly_tracks() {
         "{detections} detections in 60 frames"
     );
     assert_eq!(ctl.stats().detections, detections);
+}
+
+/// The paper's "access MDP per image" (5): a detection below `T_c` asks the policy
+/// again at once and its choice runs on the same image; a variant already run on the
+/// image ends the chain, and so does the limit.
+#[test]
+fn a_weak_detection_asks_the_policy_again_on_the_same_image() {
+    let bytes = bundle_bytes(Thresholds::PAPER);
+    let mut c = Controller::new(Bundle::parse(&bytes).unwrap());
+    assert_eq!(c.step(&obs(0, None, None)), detect(0, Trigger::Start));
+    // cnn-small unsure (0.4 < T_c): (inadequate, cnn-small) → cnn-full, same image.
+    assert_eq!(c.detected(Some(0.4)), Access::Again(1));
+    // cnn-full unsure too: (inadequate, cnn-full) → cnn-full, already run: done.
+    assert_eq!(c.detected(Some(0.45)), Access::Done);
+    assert_eq!(c.current_variant(), 1);
+    assert_eq!(c.last_score(), Some(0.45));
+    let s = c.stats();
+    assert_eq!((s.frames, s.detections, s.queries), (1, 2, 2));
+    // The image is done; the next frame still sees a weak score and asks again.
+    assert_eq!(
+        c.step(&obs(1, None, good(0.9))),
+        detect(1, Trigger::LowScore)
+    );
+    // Found nothing: (miss, cnn-full) → HoG; HoG's -0.7 is a miss on its SVM scale:
+    // (miss, HoG) → cnn-full, already run on this image: done after two.
+    assert_eq!(c.detected(None), Access::Again(2));
+    assert_eq!(c.detected(Some(-0.7)), Access::Done);
+    assert_eq!(c.current_variant(), 2);
+    // A sure detection ends the image at once; tracking resumes.
+    assert_eq!(
+        c.step(&obs(2, None, good(0.9))),
+        detect(1, Trigger::LowScore)
+    );
+    assert_eq!(c.detected(Some(0.95)), Access::Done);
+    assert_eq!(c.step(&obs(3, None, good(0.9))), Decision::Track);
+    // Without a pending detection it only records the score.
+    assert_eq!(c.detected(None), Access::Done);
+}
+
+#[test]
+fn accesses_per_image_cap_the_chain() {
+    for (limit, chain) in [(1, 1), (2, 2), (3, 3), (16, 3)] {
+        let bytes = bundle_bytes(Thresholds {
+            accesses_per_image: limit,
+            ..Thresholds::PAPER
+        });
+        let mut c = Controller::new(Bundle::parse(&bytes).unwrap());
+        assert_eq!(c.step(&obs(0, None, None)), detect(0, Trigger::Start));
+        // Nothing is ever found: cnn-small → HoG → cnn-full → (HoG, run): three at most.
+        let mut run = vec![0u16];
+        while let Access::Again(v) = c.detected(None) {
+            run.push(v);
+        }
+        assert_eq!(run.len(), chain, "limit {limit}: ran {run:?}");
+        assert_eq!(&run[..], &[0, 2, 1][..chain]);
+        assert_eq!(c.stats().detections as usize, chain);
+    }
 }

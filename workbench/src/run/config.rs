@@ -401,6 +401,13 @@ impl RunConfig {
                 "must be at least 1".into(),
             ));
         }
+        let most = frugal_runtime::bundle::MAX_ACCESSES;
+        if !(1..=most).contains(&e.accesses_per_image) {
+            return Err(bad(
+                "evaluation.accesses_per_image",
+                format!("must lie in 1..={most} (paper: 5; 1 turns it off)"),
+            ));
+        }
         let f = &self.flights;
         if f.mazes.is_empty() {
             return Err(bad("flights.mazes", "name at least one maze".into()));

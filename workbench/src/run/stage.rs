@@ -195,6 +195,7 @@ impl Ctx {
                 "iou_threshold": c.evaluation.iou_threshold,
                 "mdp_period": c.evaluation.mdp_period,
                 "reinit_period": c.evaluation.reinit_period,
+                "accesses_per_image": c.evaluation.accesses_per_image,
             }),
             "flights" => serde_json::to_value(&c.flights)?,
             other => bail!("no stage named {other}"),
@@ -508,6 +509,8 @@ impl Ctx {
                         e.mdp_period.to_string(),
                         s("--reinit-period"),
                         e.reinit_period.to_string(),
+                        s("--accesses-per-image"),
+                        e.accesses_per_image.to_string(),
                     ])?,
                     self.frugal(&[s("bundle"), s("verify"), arg(out)])?,
                 ]
