@@ -68,14 +68,12 @@ impl Default for GenConfig {
             light: Light::ALL.to_vec(),
             // many short training clips: 360 approaches show the detector about ten
             // times more distinct signs than 30 long clips of the same frame budget;
-            // validation and test clips stay long for the tracker and the policy.
-            // Twelve test clips per combination (720 frames; 1,440 per scenario of
-            // the policy report): with four, one scenario's F1 or mAP moved by about
-            // ±3 points between equally good models, more than the floors it is
-            // checked against.
-            videos_per_combo: 74,
+            // validation and test clips stay long for the tracker and the policy
+            // (4 test clips per combination are few for one scenario's figures: the
+            // README checks them on 72 more held-out videos of another seed)
+            videos_per_combo: 66,
             val_per_combo: 2,
-            test_per_combo: 12,
+            test_per_combo: 4,
             frames_per_video: 60,
             train_frames_per_video: 6,
             max_signs: 3,
@@ -279,9 +277,9 @@ mod tests {
             .validate(Path::new("<built-in>"))
             .expect("defaults are valid");
         let plan = config.video_plan();
-        assert_eq!(plan.len(), 444);
-        // 360 training clips of 6 frames, 12 validation and 72 test clips of 60
-        assert_eq!(config.total_frames(), 360 * 6 + 12 * 60 + 72 * 60);
+        assert_eq!(plan.len(), 396);
+        // 360 training clips of 6 frames, 12 validation and 24 test clips of 60
+        assert_eq!(config.total_frames(), 360 * 6 + 12 * 60 + 24 * 60);
         for split in [Split::Train, Split::Val, Split::Test] {
             let combos: BTreeSet<_> = plan
                 .iter()
@@ -293,7 +291,7 @@ mod tests {
         let count = |s| plan.iter().filter(|v| v.split == s).count();
         assert_eq!(
             (count(Split::Train), count(Split::Val), count(Split::Test)),
-            (360, 12, 72)
+            (360, 12, 24)
         );
         let ids: BTreeSet<_> = plan.iter().map(|v| v.id).collect();
         assert_eq!(
