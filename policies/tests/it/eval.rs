@@ -8,18 +8,22 @@ use frugal_policies::report::evaluate_and_write;
 use frugal_policies::train::train;
 use frugal_policies::{PolicyConfig, Reward};
 
-#[test]
-fn strategies_run_and_the_oracle_is_never_slower_or_worse_than_static() {
-    let (log, frames) = log2();
-    // The paper's reward: in this fixture the cheap variant is confident exactly when
-    // it is right. (The outcome reward learns from (optimal, expensive) that the cheap
-    // one is blind in low light half the time, and stays expensive there.)
+/// The paper's reward: in this fixture the cheap variant is confident exactly when it is
+/// right. (The outcome reward learns from (optimal, expensive) that the cheap one is
+/// blind in low light half the time, and stays expensive there.)
+fn paper_policy(log: &frugal_policies::ReplayLog) -> frugal_policies::TrainedPolicy {
     let paper = PolicyConfig {
         reward: Reward::Confidence,
         alpha: 1.0,
         ..PolicyConfig::default()
     };
-    let policy = train(&log, &paper).unwrap();
+    train(log, &paper).unwrap()
+}
+
+#[test]
+fn strategies_run_and_the_oracle_is_never_slower_or_worse_than_static() {
+    let (log, frames) = log2();
+    let policy = paper_policy(&log);
     let cfg = EvalConfig::default();
     let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
     let runs = run_all(&log, &policy, &videos, Some(&frames), &cfg, &Strategy::ALL).unwrap();
@@ -191,12 +195,7 @@ fn per_class_counts_sum_to_the_overall_counts() {
 #[test]
 fn an_unsure_detection_reruns_the_policys_choice_on_the_same_frame() {
     let (log, frames) = log2();
-    let paper = PolicyConfig {
-        reward: Reward::Confidence,
-        alpha: 1.0,
-        ..PolicyConfig::default()
-    };
-    let policy = train(&log, &paper).unwrap();
+    let policy = paper_policy(&log);
     let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
     let run = |accesses: u32| {
         let cfg = EvalConfig {

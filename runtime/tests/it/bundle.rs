@@ -307,37 +307,42 @@ fn writer_rejects_what_the_reader_would() {
         unordered.unwrap_err(),
         WriteError::Invalid(BundleError::BadValue)
     );
-    let period = BundleWriter::new(Thresholds {
-        mdp_period: 0,
-        ..Thresholds::PAPER
-    })
-    .family(FamilySpec {
-        name: "cnn".into(),
-        buckets: CNN,
-    })
-    .variant(VariantSpec::new("a", 0, 1.0, 1.0))
-    .policy(0, vec![0; BUCKET_COUNT])
-    .finish();
-    assert_eq!(
-        period.unwrap_err(),
-        WriteError::Invalid(BundleError::BadValue)
-    );
-    for accesses in [0, MAX_ACCESSES + 1] {
-        let bad = BundleWriter::new(Thresholds {
-            accesses_per_image: accesses,
-            ..Thresholds::PAPER
-        })
-        .family(FamilySpec {
-            name: "cnn".into(),
-            buckets: CNN,
-        })
-        .variant(VariantSpec::new("a", 0, 1.0, 1.0))
-        .policy(0, vec![0; BUCKET_COUNT])
-        .finish();
+    // thresholds out of range: a zero period, no access per image, too many
+    for (what, th) in [
+        (
+            "N = 0",
+            Thresholds {
+                mdp_period: 0,
+                ..Thresholds::PAPER
+            },
+        ),
+        (
+            "0 accesses per image",
+            Thresholds {
+                accesses_per_image: 0,
+                ..Thresholds::PAPER
+            },
+        ),
+        (
+            "too many accesses per image",
+            Thresholds {
+                accesses_per_image: MAX_ACCESSES + 1,
+                ..Thresholds::PAPER
+            },
+        ),
+    ] {
+        let bad = BundleWriter::new(th)
+            .family(FamilySpec {
+                name: "cnn".into(),
+                buckets: CNN,
+            })
+            .variant(VariantSpec::new("a", 0, 1.0, 1.0))
+            .policy(0, vec![0; BUCKET_COUNT])
+            .finish();
         assert_eq!(
             bad.unwrap_err(),
             WriteError::Invalid(BundleError::BadValue),
-            "{accesses} accesses per image"
+            "{what}"
         );
     }
     let no_policy = BundleWriter::new(Thresholds::PAPER)
