@@ -13,7 +13,7 @@
 use frugal_runtime::onnx::OrtDetector;
 use frugal_runtime::pilot::Pilot;
 use frugal_runtime::track::{Pyramid, rgb_to_gray};
-use frugal_runtime::{Access, Bundle, Decision, FrameRef};
+use frugal_runtime::{Bundle, Decision, FrameRef};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -77,9 +77,8 @@ fn main() -> Result<(), Error> {
         let line = match decision {
             Decision::Detect { variant, reason } => {
                 // the first variant, then any the policy asks for on the same frame
-                let mut variant = variant;
                 let mut run = Vec::new();
-                let found = loop {
+                let (_, found) = pilot.detect_with(&cur, variant, |variant| {
                     let v = usize::from(variant);
                     let info = bundle
                         .variant(variant)
@@ -91,16 +90,13 @@ fn main() -> Result<(), Error> {
                         *slot = Some(OrtDetector::open(dir, threads)?);
                     }
                     let det = slot.as_mut().ok_or("detector not opened")?;
-                    let found = det.detect(frame)?;
                     if let Some(n) = per_variant.get_mut(v) {
                         *n += 1;
                     }
                     run.push(info.name);
-                    match pilot.detected(&cur, &found) {
-                        Access::Again(next) => variant = next,
-                        Access::Done => break found,
-                    }
-                };
+                    det.detect(frame)
+                        .map_err(Box::<dyn std::error::Error>::from)
+                })?;
                 let best = found.first().map_or("nothing".to_string(), |d| {
                     format!(
                         "class {} score {:.3} box {:.0?}",

@@ -190,6 +190,11 @@ impl<'a> Controller<'a> {
         &self.bundle
     }
 
+    /// The current variant's `T_c` (its family's), `None` for a variant outside the bundle.
+    pub fn t_c(&self) -> Option<f32> {
+        self.bundle.variant_buckets(self.variant).map(|b| b.t_c)
+    }
+
     /// The policy's state for the current variant and last score: the confidence bucket.
     pub fn bucket(&self) -> Bucket {
         self.bundle
@@ -218,10 +223,7 @@ impl<'a> Controller<'a> {
         }
         self.stats.frames = self.stats.frames.wrapping_add(1);
         let th = &self.thresholds;
-        let t_c = self
-            .bundle
-            .variant_buckets(self.variant)
-            .map_or(f32::INFINITY, |b| b.t_c);
+        let t_c = self.t_c().unwrap_or(f32::INFINITY);
         let since_query = obs.frame.wrapping_sub(self.last_query);
         let since_detection = obs.frame.wrapping_sub(self.last_detection);
         let reason = if !self.started {
@@ -276,10 +278,7 @@ impl<'a> Controller<'a> {
         self.awaiting_detection = false;
         self.score = score;
         let limit = (self.thresholds.accesses_per_image as usize).min(self.tried.len());
-        let t_c = self
-            .bundle
-            .variant_buckets(self.variant)
-            .map_or(f32::NEG_INFINITY, |b| b.t_c);
+        let t_c = self.t_c().unwrap_or(f32::NEG_INFINITY);
         if self.accesses == 0 || self.accesses >= limit || score.is_some_and(|s| s >= t_c) {
             self.accesses = 0;
             return Access::Done;

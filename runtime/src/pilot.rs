@@ -10,7 +10,8 @@
 //! 2. on [`Decision::Detect`], run that variant on the frame and hand its detections
 //!    (best first) to [`Pilot::detected`], which re-initialises the trackers; while it
 //!    answers [`Access::Again`] (the detection scored below `T_c`), run the variant it
-//!    names on the same frame and hand those detections over too;
+//!    names on the same frame and hand those detections over too ([`Pilot::detect_with`]
+//!    runs that loop around a detector closure);
 //! 3. on [`Decision::Track`], [`Pilot::tracked`] gives the tracked boxes with the
 //!    class and score of the detection each one started from.
 //!
@@ -40,7 +41,7 @@
 
 use crate::bundle::Bundle;
 use crate::controller::{Access, Controller, Decision, Observation, TrackStatus};
-use crate::geom::{BBox, Detection};
+use crate::geom::{BBox, Detection, VariantId};
 use crate::track::{Pyramid, Tracker, TrackerParams};
 
 /// One held track: its tracker and the detection it started from.
@@ -147,10 +148,7 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
     /// The score at which the current variant's detections are reported (and
     /// tracked): its family's `T_c`.
     pub fn report_score(&self) -> f32 {
-        let c = &self.controller;
-        c.bundle()
-            .variant_buckets(c.current_variant())
-            .map_or(f32::NEG_INFINITY, |b| b.t_c)
+        self.controller.t_c().unwrap_or(f32::NEG_INFINITY)
     }
 
     /// Hand over the detections (best first) that the last [`Decision::Detect`] (or
@@ -174,6 +172,27 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
         }
         self.controller
             .detected(detections.first().map(|d| d.score))
+    }
+
+    /// The whole detection of one frame: `run` the variant of [`Decision::Detect`]
+    /// (`first`), hand its detections to [`Pilot::detected`], and run every variant it
+    /// asks for on the same frame in turn. Returns the last variant run and what it
+    /// found (filter with [`Pilot::report_score`] for what to report); `run`'s error
+    /// stops the frame.
+    pub fn detect_with<D: AsRef<[Detection]>, E>(
+        &mut self,
+        cur: &Pyramid<'_>,
+        first: VariantId,
+        mut run: impl FnMut(VariantId) -> Result<D, E>,
+    ) -> Result<(VariantId, D), E> {
+        let mut variant = first;
+        loop {
+            let found = run(variant)?;
+            match self.detected(cur, found.as_ref()) {
+                Access::Again(next) => variant = next,
+                Access::Done => return Ok((variant, found)),
+            }
+        }
     }
 
     /// The tracked boxes, with the class and score of the detection each started from.

@@ -7,7 +7,7 @@ use frugal_runtime::bundle::{ScoreBuckets, Thresholds};
 use frugal_runtime::pilot::Pilot;
 use frugal_runtime::synth::{ClipSpec, make_clip};
 use frugal_runtime::track::{GrayImage, Pyramid, Tracker, TrackerParams};
-use frugal_runtime::{Access, Bundle, Controller, Decision, Detection, Observation, TrackStatus};
+use frugal_runtime::{Bundle, Controller, Decision, Detection, Observation, TrackStatus};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -200,18 +200,14 @@ fn the_pilot_loop_allocates_nothing_and_follows_two_signs() {
                     score: 0.4,
                     class: 3,
                 }];
-                let mut variant = variant;
-                loop {
+                let mut runs = 0;
+                let _ = pilot.detect_with(&next, variant, |variant| {
+                    runs += 1;
                     detections += 1;
                     let weak = variant == 0 && detections % 4 == 0;
-                    match pilot.detected(&next, if weak { &unsure } else { &found }) {
-                        Access::Again(v) => {
-                            again += 1;
-                            variant = v;
-                        }
-                        Access::Done => break,
-                    }
-                }
+                    Ok::<_, ()>(if weak { &unsure[..] } else { &found[..] })
+                });
+                again += runs - 1;
             }
             Decision::Track => {
                 tracked_frames += 1;

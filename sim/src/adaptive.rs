@@ -7,7 +7,7 @@ use crate::perception::{DetectorPerception, FrameInput, Percept, Perception, Per
 use frugal_runtime::onnx::OrtDetector;
 use frugal_runtime::pilot::Pilot;
 use frugal_runtime::track::{Pyramid, rgb_to_gray};
-use frugal_runtime::{Access, Bundle, Decision};
+use frugal_runtime::{Bundle, Decision};
 use std::path::Path;
 use std::time::Instant;
 
@@ -120,28 +120,26 @@ impl Perception for AdaptivePerception {
         let detections = match self.pilot.decide(input.index as u32, prev.as_ref(), &cur) {
             Decision::Detect { variant, .. } => {
                 // the first variant, then any the policy asks for on the same frame
-                let mut variant = variant;
-                loop {
-                    let v = usize::from(variant);
-                    let det = self
-                        .detectors
-                        .get_mut(v)
-                        .ok_or("the policy names a variant outside the bundle")?;
-                    let mut found = det.detect(frame)?;
-                    if let Some(n) = self.detections_per_variant.get_mut(v) {
-                        *n += 1;
-                    }
-                    // the drone acts on reported detections only, as the replay scores
-                    // them: those at least the finding variant's T_c
-                    let t_c = self.pilot.report_score();
-                    match self.pilot.detected(&cur, &found) {
-                        Access::Again(next) => variant = next,
-                        Access::Done => {
-                            found.retain(|d| d.score >= t_c);
-                            break found;
+                let (detectors, counts) = (&mut self.detectors, &mut self.detections_per_variant);
+                let (_, mut found) = self.pilot.detect_with(
+                    &cur,
+                    variant,
+                    |variant| -> Result<_, PerceptionError> {
+                        let v = usize::from(variant);
+                        let det = detectors
+                            .get_mut(v)
+                            .ok_or("the policy names a variant outside the bundle")?;
+                        if let Some(n) = counts.get_mut(v) {
+                            *n += 1;
                         }
-                    }
-                }
+                        Ok(det.detect(frame)?)
+                    },
+                )?;
+                // the drone acts on reported detections only, as the replay scores them:
+                // those at least the finding variant's T_c
+                let t_c = self.pilot.report_score();
+                found.retain(|d| d.score >= t_c);
+                found
             }
             Decision::Track => self.pilot.tracked().collect(),
         };
