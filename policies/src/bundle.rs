@@ -66,6 +66,7 @@ pub fn bundle_bytes(
     files: &[VariantFiles],
     thresholds: Thresholds,
     initial: u16,
+    reference: Option<u16>,
     actions: &[u16],
     metadata: &[(String, String)],
 ) -> Result<Vec<u8>> {
@@ -94,6 +95,9 @@ pub fn bundle_bytes(
         w = w.variant(spec);
     }
     w = w.policy(initial, actions.to_vec());
+    if let Some(r) = reference {
+        w = w.reference(r);
+    }
     for (k, v) in metadata {
         w = w.metadata(k.clone(), v.clone());
     }
@@ -145,6 +149,7 @@ pub fn policy_bundle(policy: &TrainedPolicy, thresholds: Thresholds) -> Result<V
         &[],
         thresholds,
         policy.initial,
+        policy.reference,
         &policy.actions,
         &policy_metadata(policy),
     )
@@ -233,6 +238,7 @@ pub fn write_bundle(policy: &TrainedPolicy, thresholds: Thresholds, out: &Path) 
         &files,
         thresholds,
         policy.initial,
+        policy.reference,
         &policy.actions,
         &metadata,
     )?;
@@ -350,7 +356,12 @@ pub fn inspect(path: &Path) -> Result<String> {
     }
     let pol = b.policy();
     let name = |v: u16| b.variant(v).map_or("?".to_owned(), |x| x.name.to_owned());
-    let _ = writeln!(s, "policy (initial variant: {}):", name(pol.initial()));
+    let _ = writeln!(
+        s,
+        "policy (initial variant: {}; reference variant, to confirm signs: {}):",
+        name(pol.initial()),
+        name(pol.reference())
+    );
     let _ = writeln!(
         s,
         "  {:<24} {:>14} {:>14} {:>14} {:>14}",

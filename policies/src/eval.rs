@@ -364,6 +364,7 @@ pub fn constant_bundle(log: &ReplayLog, variant: u16, thresholds: Thresholds) ->
         &[],
         thresholds,
         variant,
+        Some(variant),
         &actions,
         &[("strategy".into(), format!("constant {variant}"))],
     )

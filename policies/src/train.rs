@@ -322,6 +322,11 @@ pub struct TrainedPolicy {
     pub training_videos: Vec<u32>,
     /// Variant run before any detection: the policy's action in (miss, cheapest).
     pub initial: u16,
+    /// The most accurate variant on the training videos (the replay's static one),
+    /// which the bundle names as its reference ([`frugal_runtime::bundle::Policy::reference`]).
+    /// `None` in policies saved before it existed: the bundle then names the costliest.
+    #[serde(default)]
+    pub reference: Option<u16>,
     /// `actions[bucket · V + v]`: the next variant (the bundle's layout).
     pub actions: Vec<u16>,
     /// State values under the policy.
@@ -425,6 +430,7 @@ pub fn solve(
         variants: log.variants.clone(),
         training_videos,
         initial: actions[state(Bucket::Miss, 0, v_n)],
+        reference: u16::try_from(crate::eval::most_accurate(log, cfg.outcome_iou)).ok(),
         actions,
         values: vi.values,
         iterations: vi.iterations,

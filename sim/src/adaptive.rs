@@ -45,7 +45,7 @@ pub struct AdaptivePerception {
     size: (usize, usize),
     have_prev: bool,
     label: String,
-    /// Detections per variant so far.
+    /// Detections per variant so far (confirmations included).
     pub detections_per_variant: Vec<u64>,
 }
 
@@ -149,5 +149,31 @@ impl Perception for AdaptivePerception {
             detections,
             compute_ms: started.elapsed().as_secs_f64() * 1e3,
         })
+    }
+
+    /// The bundle's reference variant (the most accurate) on this frame, reporting
+    /// what scores at least its family's `T_c`. The pilot's state is left as it is:
+    /// a confirmation is the navigator's question, not a step of the policy.
+    fn confirm(&mut self, input: &FrameInput<'_>) -> Result<Option<Percept>, PerceptionError> {
+        let started = Instant::now();
+        let reference = self.bundle.policy().reference();
+        let t_c = self
+            .bundle
+            .variant_buckets(reference)
+            .map_or(CNN_REPORT_SCORE, |b| b.t_c);
+        let v = usize::from(reference);
+        let det = self
+            .detectors
+            .get_mut(v)
+            .ok_or("the bundle's reference variant has no detector")?;
+        if let Some(n) = self.detections_per_variant.get_mut(v) {
+            *n += 1;
+        }
+        let mut detections = det.detect(input.image)?;
+        detections.retain(|d| d.score >= t_c);
+        Ok(Some(Percept {
+            detections,
+            compute_ms: started.elapsed().as_secs_f64() * 1e3,
+        }))
     }
 }

@@ -33,10 +33,116 @@ struct Sighting {
     /// The highest support reached; a sighting that reached `confirm_frames` is
     /// kept (and acted on) even when the sign is no longer readable close up.
     peak: f64,
+    /// Confirmed by the perception's most accurate detector ([`Perception::confirm`]),
+    /// or by its readings alone when it has nothing more accurate: only a verified
+    /// sighting is acted on.
+    verified: bool,
+    /// Its action was read by the most accurate detector: readings of any turn or STOP
+    /// at its spot support it (a cheap detector that mirrors an arrow steadily still
+    /// places it right).
+    settled: bool,
+    /// Least-squares fit of the distance read against the odometer over the
+    /// sighting's readings: a sign that stands still comes closer by as much as the
+    /// drone flies (slope −1). A far sign whose box a detector cannot draw small enough
+    /// is read at the same distance however far the drone flies (slope ≈ 0): its spot
+    /// moves with the drone, and acting on it turns the drone metres early.
+    fit: LineFit,
 }
 
 /// Per-frame decay of a sighting's support.
 const SUPPORT_DECAY: f64 = 0.8;
+/// A sighting is acted on only once its readings span this much flight, metres …
+const MIN_SPAN: f64 = 0.5;
+/// … and its distance shrinks at least this fast per metre flown.
+const MIN_APPROACH: f64 = 0.5;
+/// Readings spanning this much flight whose distance shrinks slower than
+/// [`RESTART_APPROACH`] per metre flown: the spot has moved with the drone, and the
+/// sighting starts again from the latest reading (a far sign read too close, then
+/// really approached, is not held back by its early readings).
+const RESTART_SPAN: f64 = 1.0;
+/// See [`RESTART_SPAN`].
+const RESTART_APPROACH: f64 = 0.25;
+
+/// Running least-squares line through (odometer, distance read) points.
+#[derive(Clone, Copy, Debug, Default)]
+struct LineFit {
+    n: f64,
+    sx: f64,
+    sy: f64,
+    sxx: f64,
+    sxy: f64,
+    x_min: f64,
+    x_max: f64,
+}
+
+impl LineFit {
+    fn new(x: f64, y: f64) -> Self {
+        let mut f = Self {
+            x_min: x,
+            x_max: x,
+            ..Self::default()
+        };
+        f.add(x, y);
+        f
+    }
+
+    fn add(&mut self, x: f64, y: f64) {
+        self.n += 1.0;
+        self.sx += x;
+        self.sy += y;
+        self.sxx += x * x;
+        self.sxy += x * y;
+        self.x_min = self.x_min.min(x);
+        self.x_max = self.x_max.max(x);
+    }
+
+    /// Odometer span of the points, metres.
+    fn span(&self) -> f64 {
+        self.x_max - self.x_min
+    }
+
+    /// How fast the distance read shrinks per metre flown (1 for a sign standing
+    /// still); `None` with fewer than two distinct odometer readings.
+    fn approach(&self) -> Option<f64> {
+        let var = self.n * self.sxx - self.sx * self.sx;
+        (var > 1e-9 * self.n * self.n).then(|| -(self.n * self.sxy - self.sx * self.sy) / var)
+    }
+}
+
+impl Sighting {
+    fn new(action: NavAction, odo: f64, dist: f64) -> Self {
+        Self {
+            action,
+            at: odo + dist,
+            dist,
+            support: 1.0,
+            peak: 1.0,
+            verified: false,
+            settled: false,
+            fit: LineFit::new(odo, dist),
+        }
+    }
+
+    /// Another reading of this sign, `dist` ahead at odometer `odo`.
+    fn read(&mut self, odo: f64, dist: f64) {
+        self.fit.add(odo, dist);
+        if self.fit.span() >= RESTART_SPAN
+            && self.fit.approach().is_some_and(|a| a < RESTART_APPROACH)
+        {
+            *self = Self::new(self.action, odo, dist);
+            return;
+        }
+        self.support += 1.0;
+        self.peak = self.peak.max(self.support);
+        self.at = odo + dist; // the closer reading is the better one
+        self.dist = dist;
+    }
+
+    /// Read over enough flight to tell, and coming closer as a standing sign does.
+    fn stands_still(&self) -> bool {
+        self.fit.span() >= MIN_SPAN && self.fit.approach().is_some_and(|a| a >= MIN_APPROACH)
+    }
+}
 
 /// Navigation parameters.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -257,6 +363,13 @@ pub struct FlightResult {
     pub sign_hits: u64,
     /// Detections matching no visible sign.
     pub false_detections: u64,
+    /// Confirmations asked of the perception's most accurate detector
+    /// ([`Perception::confirm`]), and how many of them rejected the sign.
+    #[serde(default)]
+    pub confirmations: u64,
+    /// Of the confirmations, those that did not find the sign where it was read.
+    #[serde(default)]
+    pub rejections: u64,
     /// Trajectory, sampled every 0.25 s and at every mode change.
     pub track: Vec<TrackPoint>,
     /// Turns, waits, landing, collision.
@@ -420,6 +533,9 @@ pub fn fly(
     let mut frames = 0u64;
     let (mut compute_total, mut render_total) = (0.0, 0.0);
     let (mut sign_frames, mut sign_hits, mut false_detections) = (0u64, 0u64, 0u64);
+    let (mut confirmations, mut rejections) = (0u64, 0u64);
+    // compute time of confirmations, charged to the next interval
+    let mut pending_ms = 0.0;
     let f_px = cam.focal_px();
     let min_dt = 1.0 / nav.camera_fps;
     let outcome;
@@ -446,13 +562,14 @@ pub fn fly(
             height: cam.height,
             rgb: &rgb,
         };
+        let input = FrameInput {
+            image,
+            time_s: t,
+            index: frames,
+            truth: &truth,
+        };
         let percept = perception
-            .perceive(&FrameInput {
-                image,
-                time_s: t,
-                index: frames,
-                truth: &truth,
-            })
+            .perceive(&input)
             .map_err(|source| FlightError::Perception {
                 name: name.clone(),
                 frame: frames,
@@ -466,7 +583,8 @@ pub fn fly(
             &mut sign_hits,
             &mut false_detections,
         );
-        let dt = (percept.compute_ms.max(0.0) / 1e3 * config.device.slowdown).max(min_dt);
+        let compute_ms = percept.compute_ms.max(0.0) + std::mem::take(&mut pending_ms);
+        let dt = (compute_ms / 1e3 * config.device.slowdown).max(min_dt);
         dt_avg = Some(dt_avg.map_or(dt, |a| a * 0.7 + dt * 0.3));
 
         // Fly the interval on the current command.
@@ -549,8 +667,8 @@ pub fn fly(
             }
             Mode::Cruise | Mode::HoldForPedestrian => {
                 mode = Mode::Cruise;
-                // the first detection this frame that would make the drone act …
-                let candidate = percept.detections.iter().find_map(|d| {
+                // what a detection would make the drone do, and how far away the sign is
+                let reading = |d: &Detection| {
                     let action = Sign::from_id(d.class)?.action()?;
                     let dist = f_px * maze.sign_size / f64::from(d.bbox.height()).max(1e-3);
                     let (cx, _) = d.bbox.center();
@@ -564,7 +682,9 @@ pub fn fly(
                         NavAction::Wait => dist <= nav.wait_distance && odo >= wait_zone_until,
                     };
                     acts.then_some((action, dist))
-                });
+                };
+                // the first detection this frame that would make the drone act …
+                let candidate = percept.detections.iter().find_map(reading);
                 let need = nav.confirm_frames.max(1);
                 match candidate {
                     Some((NavAction::Wait, dist)) => {
@@ -593,27 +713,72 @@ pub fn fly(
                         let tol = 0.5 + 0.15 * dist;
                         match sightings
                             .iter_mut()
-                            .find(|s| s.action == action && (s.at - at).abs() <= tol)
+                            .find(|s| (s.action == action || s.settled) && (s.at - at).abs() <= tol)
                         {
-                            Some(s) => {
-                                s.support += 1.0;
-                                s.peak = s.peak.max(s.support);
-                                s.at = at; // the closer reading is the better one
-                                s.dist = dist;
-                            }
-                            None => sightings.push(Sighting {
-                                action,
-                                at,
-                                dist,
-                                support: 1.0,
-                                peak: 1.0,
-                            }),
+                            Some(s) => s.read(odo, dist),
+                            None => sightings.push(Sighting::new(action, odo, dist)),
                         }
                     }
                     None => streak = None,
                 }
-                // signs already passed, or not read for a while, are forgotten
                 let need_f = f64::from(need);
+                // a sighting that has just built enough support is read again by the
+                // perception's most accurate detector before anything is scheduled on
+                // it (one per frame): its reading at the same spot decides the action,
+                // and where it reads no turn or STOP sign, the sighting is dropped
+                if let Some(i) = sightings
+                    .iter()
+                    .position(|s| s.peak >= need_f && !s.verified)
+                {
+                    let check =
+                        perception
+                            .confirm(&input)
+                            .map_err(|source| FlightError::Perception {
+                                name: name.clone(),
+                                frame: frames - 1,
+                                source,
+                            })?;
+                    match check {
+                        None => sightings
+                            .iter_mut()
+                            .filter(|s| s.peak >= need_f)
+                            .for_each(|s| s.verified = true),
+                        Some(check) => {
+                            confirmations += 1;
+                            pending_ms += check.compute_ms.max(0.0);
+                            compute_total += check.compute_ms.max(0.0);
+                            let s = &mut sightings[i];
+                            let tol = |dist: f64| 0.5 + 0.15 * dist.max(s.dist);
+                            let agrees = check.detections.iter().filter_map(reading).find(
+                                |&(action, dist)| {
+                                    action != NavAction::Wait
+                                        && (odo + dist - s.at).abs() <= tol(dist)
+                                },
+                            );
+                            if let Some((action, dist)) = agrees {
+                                s.action = action;
+                                s.read(odo, dist);
+                                s.verified = true;
+                                s.settled = true;
+                            } else {
+                                rejections += 1;
+                                let at = s.at;
+                                events.push(Event {
+                                    t,
+                                    x: pose.x,
+                                    y: pose.y,
+                                    what: format!(
+                                        "{:?} sign {:.2} m ahead not confirmed",
+                                        sightings[i].action,
+                                        at - odo
+                                    ),
+                                });
+                                sightings.remove(i);
+                            }
+                        }
+                    }
+                }
+                // signs already passed, or not read for a while, are forgotten
                 sightings.retain(|s| s.at > odo - 0.5 && (s.peak >= need_f || s.support > 0.05));
                 // carry out the best-supported manoeuvre once the odometer reaches it
                 let due = sightings
@@ -624,7 +789,10 @@ pub fn fly(
                         } else {
                             turn_distance
                         };
-                        s.peak >= need_f && odo >= s.at - trigger
+                        s.peak >= need_f
+                            && s.verified
+                            && s.stands_still()
+                            && odo >= s.at - trigger
                     })
                     .filter(|s| {
                         // contradicted at the same spot (within the matching tolerance of
@@ -637,6 +805,7 @@ pub fn fly(
                             o.action != s.action
                                 && (o.at - s.at).abs() <= tol
                                 && o.peak >= need_f
+                                && o.verified
                                 && (o.dist < s.dist || (o.dist == s.dist && o.peak >= s.peak))
                         })
                     })
@@ -754,6 +923,8 @@ pub fn fly(
         sign_frames,
         sign_hits,
         false_detections,
+        confirmations,
+        rejections,
         track,
         events,
     })

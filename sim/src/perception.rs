@@ -47,6 +47,15 @@ pub trait Perception {
     fn name(&self) -> String;
     /// Process one frame.
     fn perceive(&mut self, input: &FrameInput<'_>) -> Result<Percept, PerceptionError>;
+
+    /// Read the frame again with the most accurate detector this perception has, to
+    /// confirm a sign before the drone acts on it (a turn, a landing), since one
+    /// misread there costs the flight. `None`: nothing more accurate than what
+    /// [`Perception::perceive`] ran (ground truth, a static detector), so its readings
+    /// stand. The compute time is charged to the flight like a frame's.
+    fn confirm(&mut self, _input: &FrameInput<'_>) -> Result<Option<Percept>, PerceptionError> {
+        Ok(None)
+    }
 }
 
 impl<F> Perception for F

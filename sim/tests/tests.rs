@@ -406,6 +406,145 @@ fn an_arrow_misread_from_afar_is_overruled_when_read_close_up() {
 /// Arrow boxes smaller than this (pixels, at the test camera's 240×135) are misread.
 const MIRROR_BELOW_PX: f32 = 26.0;
 
+/// A cheap detector: ground truth with `misread` applied, and (when `confirms`) the
+/// ground truth itself as the accurate detector that confirms a sign before the drone
+/// acts on it, as the adaptive runtime runs its bundle's reference variant.
+struct Cheap<F> {
+    gt: GroundTruthPerception,
+    misread: F,
+    confirms: bool,
+}
+
+impl<F: FnMut(&FrameInput<'_>, &mut Percept)> frugal_sim::Perception for Cheap<F> {
+    fn name(&self) -> String {
+        "cheap".into()
+    }
+    fn perceive(&mut self, input: &FrameInput<'_>) -> Result<Percept, PerceptionError> {
+        let mut p = self.gt.perceive(input)?;
+        (self.misread)(input, &mut p);
+        Ok(p)
+    }
+    fn confirm(&mut self, input: &FrameInput<'_>) -> Result<Option<Percept>, PerceptionError> {
+        if self.confirms {
+            self.gt.perceive(input).map(Some)
+        } else {
+            Ok(None)
+        }
+    }
+}
+
+/// Flies every shipped maze with a cheap detector that misreads steadily, with and
+/// without confirmation; returns (outcomes without, flights with confirmation).
+fn fly_cheap(
+    misread: impl FnMut(&FrameInput<'_>, &mut Percept) + Copy,
+) -> Vec<(String, Outcome, frugal_sim::FlightResult)> {
+    ["easy", "medium", "hard"]
+        .into_iter()
+        .map(|name| {
+            let maze = Maze::builtin(name).unwrap();
+            let fly = |confirms| {
+                let mut p = Cheap {
+                    gt: GroundTruthPerception::default(),
+                    misread,
+                    confirms,
+                };
+                frugal_sim::fly(&maze, &fast_config(), &mut p, 1, None).unwrap()
+            };
+            (name.to_owned(), fly(false).outcome, fly(true))
+        })
+        .collect()
+}
+
+#[test]
+fn an_accurate_reading_corrects_a_steadily_mirrored_arrow() {
+    // the cheap detector reads every arrow as its mirror image at every distance, so
+    // its readings agree with each other: only the accurate detector can overrule them
+    let (left, right) = (Sign::TurnLeft.id(), Sign::TurnRight.id());
+    let mirrored = |_: &FrameInput<'_>, p: &mut Percept| {
+        for d in &mut p.detections {
+            if d.class == left {
+                d.class = right;
+            } else if d.class == right {
+                d.class = left;
+            }
+        }
+    };
+    for (name, without, with) in fly_cheap(mirrored) {
+        assert!(!without.is_success(), "{name}: mirrored arrows did not matter");
+        assert_eq!(with.outcome, Outcome::Success, "{name}: {:?}", with.events);
+        assert!(with.confirmations > 0, "{name}");
+    }
+}
+
+#[test]
+fn a_steady_false_sign_is_dropped_when_the_accurate_reading_disagrees() {
+    // a phantom arrow, the mirror of each real one, read as standing 2 m before it (its
+    // box scaled up accordingly): it stays put on the odometer like a real sign, and
+    // the drone would turn 2 m early into a wall
+    let (left, right) = (Sign::TurnLeft.id(), Sign::TurnRight.id());
+    let phantom = |input: &FrameInput<'_>, p: &mut Percept| {
+        for s in &input.truth.signs {
+            if (s.class == left || s.class == right) && s.depth > 3.0 {
+                let k = (s.depth / (s.depth - 2.0)) as f32;
+                let (cx, cy) = s.bbox.center();
+                let (hw, hh) = (s.bbox.width() * k / 2.0, s.bbox.height() * k / 2.0);
+                p.detections.insert(
+                    0,
+                    frugal_runtime::Detection {
+                        bbox: BBox::new(cx - hw, cy - hh, cx + hw, cy + hh),
+                        score: 0.95,
+                        class: if s.class == left { right } else { left },
+                    },
+                );
+            }
+        }
+    };
+    let flights = fly_cheap(phantom);
+    assert!(
+        flights.iter().any(|(_, without, _)| !without.is_success()),
+        "the phantom never misled an unconfirmed flight"
+    );
+    for (name, _, with) in flights {
+        assert_eq!(with.outcome, Outcome::Success, "{name}: {:?}", with.events);
+        assert!(with.rejections > 0, "{name}: nothing rejected");
+    }
+}
+
+#[test]
+fn a_far_arrow_read_with_a_box_too_large_does_not_turn_the_drone_early() {
+    // a detector cannot draw a box smaller than its smallest anchors: an arrow far down
+    // the aisle is read, with the right class, as if 4.5 m away, however far it is;
+    // its spot moves with the drone, and a turn scheduled on it comes metres early
+    let cfg = fast_config();
+    let f_px = cfg.camera.focal_px();
+    let (left, right) = (Sign::TurnLeft.id(), Sign::TurnRight.id());
+    for name in ["easy", "medium", "hard"] {
+        let maze = Maze::builtin(name).unwrap();
+        let floor_px = (f_px * maze.sign_size / 4.5) as f32;
+        let mut gt = GroundTruthPerception::default();
+        let mut inflated = 0;
+        let mut too_large = |input: &FrameInput<'_>| -> Result<Percept, PerceptionError> {
+            let mut p = frugal_sim::Perception::perceive(&mut gt, input)?;
+            for s in &input.truth.signs {
+                if (s.class == left || s.class == right) && s.depth > 6.0 {
+                    let (cx, cy) = s.bbox.center();
+                    let h = floor_px / 2.0;
+                    p.detections.push(frugal_runtime::Detection {
+                        bbox: BBox::new(cx - h, cy - h, cx + h, cy + h),
+                        score: 0.9,
+                        class: s.class,
+                    });
+                    inflated += 1;
+                }
+            }
+            Ok(p)
+        };
+        let r = frugal_sim::fly(&maze, &cfg, &mut too_large, 1, None).unwrap();
+        assert!(inflated > 50, "{name}: {inflated} inflated readings");
+        assert_eq!(r.outcome, Outcome::Success, "{name}: {:?}", r.events);
+    }
+}
+
 #[test]
 fn signs_unreadable_close_up_still_steer_the_drone() {
     // a detector trained on signs up to ~100 px (at 480×270; 45 px at this camera's

@@ -8,7 +8,7 @@
 //! [`Bundle::variant_family`], [`Bundle::family_buckets`]) is O(1) and cannot fail for
 //! in-range indices. The writer lives in `bundle::write` (feature `std`).
 //!
-//! # Format, version 1 (this table is the specification)
+//! # Format, version 3 (this table is the specification)
 //!
 //! All integers and floats are **little-endian**; `f32` is IEEE-754 binary32. Offsets
 //! are in bytes. Nothing is assumed about alignment when reading; the writer starts
@@ -19,7 +19,7 @@
 //! | offset | size | type | field |
 //! |-------:|-----:|------|-------|
 //! | 0  | 4 | u32 | magic `0x4250_5246` — the bytes `"FRPB"`; the byte-swapped value (`"BPRF"`) means a big-endian writer: [`BundleError::WrongEndian`] |
-//! | 4  | 2 | u16 | format version, [`FORMAT_VERSION`] = 2 |
+//! | 4  | 2 | u16 | format version, [`FORMAT_VERSION`] = 3 |
 //! | 6  | 2 | u16 | section count `n`, 1 ..= [`MAX_SECTIONS`] |
 //! | 8  | 4 | u32 | total file length in bytes (must equal the input length) |
 //! | 12 | 4 | u32 | CRC-32 (IEEE, as zlib) of the whole file with these 4 bytes taken as zero |
@@ -83,7 +83,7 @@
 //! | 0 | 2 | u16 | bucket count, must be [`BUCKET_COUNT`] = 4 |
 //! | 2 | 2 | u16 | variant count, must equal `V` |
 //! | 4 | 2 | u16 | initial variant `< V` (used as the current variant before any detection) |
-//! | 6 | 2 | u16 | reserved, 0 |
+//! | 6 | 2 | u16 | reference variant `< V`: the most accurate one (the replay's static variant), which the drone runs to confirm a sign before it acts on it ([`Policy::reference`]) |
 //! | 8 + 2 (b V + v) | 2 | u16 | action for the state (bucket `b`, current variant `v`): the next variant, `< V` |
 //!
 //! The section is exactly `8 + 2 · 4 · V` bytes. Buckets are numbered as [`Bucket`]:
@@ -107,8 +107,9 @@ use core::fmt;
 
 /// The magic number, stored little-endian as the bytes `"FRPB"`.
 pub const MAGIC: u32 = 0x4250_5246;
-/// The format version this reader understands (2 added the accesses per image).
-pub const FORMAT_VERSION: u16 = 2;
+/// The format version this reader understands (2 added the accesses per image, 3 the
+/// reference variant).
+pub const FORMAT_VERSION: u16 = 3;
 /// Header length in bytes.
 pub const HEADER_LEN: usize = 16;
 /// Section table entry length in bytes.
@@ -199,7 +200,7 @@ pub enum BundleError {
     BadValue,
     /// The policy's bucket or variant count does not match the bundle.
     BadPolicyShape,
-    /// A policy action or the initial variant is not a valid variant index.
+    /// A policy action, the initial or the reference variant is not a valid variant index.
     BadAction,
 }
 
@@ -455,6 +456,7 @@ pub struct Policy<'a> {
     actions: &'a [u8],
     variants: u16,
     initial: VariantId,
+    reference: VariantId,
 }
 
 impl<'a> Policy<'a> {
@@ -474,6 +476,14 @@ impl<'a> Policy<'a> {
     /// The variant used before any detection.
     pub const fn initial(&self) -> VariantId {
         self.initial
+    }
+
+    /// The reference variant: the most accurate one (the static baseline of the replay
+    /// evaluation). The policy never needs it to decide; a drone runs it to confirm a
+    /// sign a cheaper variant read before acting on it (a turn, a landing), where one
+    /// misread costs the flight.
+    pub const fn reference(&self) -> VariantId {
+        self.reference
     }
 
     /// Number of variants (the policy's second state dimension).
@@ -767,12 +777,9 @@ fn parse_policy(b: &[u8], variants: usize) -> Result<Policy<'_>, BundleError> {
     let buckets = rd_u16(b, 0).ok_or(BundleError::BadSectionLength)? as usize;
     let v = rd_u16(b, 2).ok_or(BundleError::BadSectionLength)?;
     let initial = rd_u16(b, 4).ok_or(BundleError::BadSectionLength)?;
-    let reserved = rd_u16(b, 6).ok_or(BundleError::BadSectionLength)?;
+    let reference = rd_u16(b, 6).ok_or(BundleError::BadSectionLength)?;
     if buckets != BUCKET_COUNT || v as usize != variants {
         return Err(BundleError::BadPolicyShape);
-    }
-    if reserved != 0 {
-        return Err(BundleError::BadValue);
     }
     let expected = POLICY_HEADER + 2 * BUCKET_COUNT * variants;
     if b.len() != expected {
@@ -782,6 +789,7 @@ fn parse_policy(b: &[u8], variants: usize) -> Result<Policy<'_>, BundleError> {
         .get(POLICY_HEADER..)
         .ok_or(BundleError::BadSectionLength)?;
     if initial >= v
+        || reference >= v
         || actions
             .chunks_exact(2)
             .any(|c| <[u8; 2]>::try_from(c).map_or(u16::MAX, u16::from_le_bytes) >= v)
@@ -792,5 +800,6 @@ fn parse_policy(b: &[u8], variants: usize) -> Result<Policy<'_>, BundleError> {
         actions,
         variants: v,
         initial,
+        reference,
     })
 }

@@ -110,6 +110,7 @@ pub struct BundleWriter {
     families: Vec<FamilySpec>,
     variants: Vec<VariantSpec>,
     policy: Option<(VariantId, Vec<VariantId>)>,
+    reference: Option<VariantId>,
     metadata: Vec<(String, String)>,
 }
 
@@ -175,6 +176,14 @@ impl BundleWriter {
         self
     }
 
+    /// Sets the reference variant ([`crate::bundle::Policy::reference`]): the most
+    /// accurate one. Unset, it is the costliest variant, which on a Pareto front of
+    /// cost against accuracy is the most accurate.
+    pub fn reference(mut self, variant: VariantId) -> Self {
+        self.reference = Some(variant);
+        self
+    }
+
     /// Appends a metadata pair.
     pub fn metadata(mut self, key: impl Into<String>, value: impl Into<String>) -> Self {
         self.metadata.push((key.into(), value.into()));
@@ -215,8 +224,18 @@ impl BundleWriter {
         let mut pol = Vec::with_capacity(8 + 2 * actions.len());
         pol.extend_from_slice(&(BUCKET_COUNT as u16).to_le_bytes());
         pol.extend_from_slice(&v.to_le_bytes());
+        let reference = match self.reference {
+            Some(r) => r,
+            None => self
+                .variants
+                .iter()
+                .enumerate()
+                .max_by(|a, b| a.1.relative_cost.total_cmp(&b.1.relative_cost))
+                .map_or(Ok(0), |(i, _)| u16::try_from(i))
+                .map_err(|_| WriteError::TooLarge)?,
+        };
         pol.extend_from_slice(&initial.to_le_bytes());
-        pol.extend_from_slice(&0u16.to_le_bytes());
+        pol.extend_from_slice(&reference.to_le_bytes());
         for a in actions {
             pol.extend_from_slice(&a.to_le_bytes());
         }

@@ -126,6 +126,8 @@ fn round_trip_keeps_every_field() {
     assert_eq!(b.variant_family(2), Some(1));
     let p = b.policy();
     assert_eq!((p.initial(), p.variant_count()), (1, 3));
+    // unset, the reference is the costliest variant (hog-1000-2-8-9, cost 9)
+    assert_eq!(p.reference(), 2);
     assert_eq!(p.action(Bucket::Optimal, 2), Some(1));
     assert_eq!(p.action(Bucket::GoodEnough, 1), Some(1));
     assert_eq!(p.action(Bucket::Inadequate, 0), Some(1));
@@ -264,6 +266,29 @@ fn structural_errors_behind_valid_checksums() {
 }
 
 #[test]
+fn the_reference_variant_is_kept_and_checked() {
+    let bytes = writer().reference(1).finish().unwrap();
+    assert_eq!(Bundle::parse(&bytes).unwrap().policy().reference(), 1);
+    // out of range behind valid checksums: the policy body's bytes 6..8
+    let b = Bundle::parse(&bytes).unwrap();
+    let body = policy_body_offset(&bytes);
+    let mut bad = bytes.clone();
+    bad[body + 6..body + 8].copy_from_slice(&b.variant_count().to_le_bytes());
+    fix_checksums(&mut bad);
+    assert_eq!(Bundle::parse(&bad).unwrap_err(), BundleError::BadAction);
+}
+
+/// Offset of the policy section's body (kind 4) from the section table.
+fn policy_body_offset(b: &[u8]) -> usize {
+    let n = u16::from_le_bytes([b[6], b[7]]) as usize;
+    (0..n)
+        .map(|i| HEADER_LEN + i * SECTION_ENTRY_LEN)
+        .find(|&e| u32::from_le_bytes(b[e..e + 4].try_into().unwrap()) == 4)
+        .map(|e| u32::from_le_bytes(b[e + 4..e + 8].try_into().unwrap()) as usize)
+        .expect("a policy section")
+}
+
+#[test]
 fn writer_rejects_what_the_reader_would() {
     let bad_action = writer().policy(0, vec![3; BUCKET_COUNT * 3]).finish();
     assert_eq!(
@@ -273,6 +298,11 @@ fn writer_rejects_what_the_reader_would() {
     let bad_initial = writer().policy(3, vec![0; BUCKET_COUNT * 3]).finish();
     assert_eq!(
         bad_initial.unwrap_err(),
+        WriteError::Invalid(BundleError::BadAction)
+    );
+    let bad_reference = writer().reference(3).finish();
+    assert_eq!(
+        bad_reference.unwrap_err(),
         WriteError::Invalid(BundleError::BadAction)
     );
     let short = writer().policy(0, vec![0; 5]).finish();
