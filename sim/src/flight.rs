@@ -41,6 +41,13 @@ struct Sighting {
     /// at its spot support it (a cheap detector that mirrors an arrow steadily still
     /// places it right).
     settled: bool,
+    /// The most accurate detector's readings of it so far, by action
+    /// ([`action_index`]): re-read every [`RECONFIRM_EVERY`] metres while it is
+    /// approached, the majority decides its action (one accurate reading of a small
+    /// far arrow can be mirrored too).
+    votes: [f64; 4],
+    /// Odometer at its last confirmation.
+    confirmed_at: f64,
     /// Least-squares fit of the distance read against the odometer over the
     /// sighting's readings: a sign that stands still comes closer by as much as the
     /// drone flies (slope −1). A far sign whose box a detector cannot draw small enough
@@ -62,6 +69,18 @@ const MIN_APPROACH: f64 = 0.5;
 const RESTART_SPAN: f64 = 1.0;
 /// See [`RESTART_SPAN`].
 const RESTART_APPROACH: f64 = 0.25;
+/// A confirmed sign is read again by the most accurate detector every this many
+/// metres flown until the drone acts on it.
+const RECONFIRM_EVERY: f64 = 0.5;
+
+fn action_index(a: NavAction) -> usize {
+    match a {
+        NavAction::TurnLeft => 0,
+        NavAction::TurnRight => 1,
+        NavAction::Stop => 2,
+        NavAction::Wait => 3,
+    }
+}
 
 /// Running least-squares line through (odometer, distance read) points.
 #[derive(Clone, Copy, Debug, Default)]
@@ -119,6 +138,8 @@ impl Sighting {
             peak: 1.0,
             verified: false,
             settled: false,
+            votes: [0.0; 4],
+            confirmed_at: f64::NEG_INFINITY,
             fit: LineFit::new(odo, dist),
         }
     }
@@ -136,6 +157,20 @@ impl Sighting {
         self.peak = self.peak.max(self.support);
         self.at = odo + dist; // the closer reading is the better one
         self.dist = dist;
+    }
+
+    /// The most accurate detector read it as `action`, `dist` ahead at `odo`: a vote,
+    /// and the majority of the votes is its action (a tie goes to this reading).
+    fn confirmed(&mut self, action: NavAction, odo: f64, dist: f64) {
+        self.read(odo, dist);
+        self.votes[action_index(action)] += 1.0;
+        let mine = self.votes[action_index(action)];
+        if self.votes[action_index(self.action)] <= mine {
+            self.action = action;
+        }
+        self.verified = true;
+        self.settled = true;
+        self.confirmed_at = odo;
     }
 
     /// Read over enough flight to tell, and coming closer as a standing sign does.
@@ -722,14 +757,26 @@ pub fn fly(
                     None => streak = None,
                 }
                 let need_f = f64::from(need);
+                let trigger_of = |s: &Sighting| {
+                    if s.action == NavAction::Stop {
+                        land_distance
+                    } else {
+                        turn_distance
+                    }
+                };
                 // a sighting that has just built enough support is read again by the
                 // perception's most accurate detector before anything is scheduled on
-                // it (one per frame): its reading at the same spot decides the action,
-                // and where it reads no turn or STOP sign, the sighting is dropped
-                if let Some(i) = sightings
-                    .iter()
-                    .position(|s| s.peak >= need_f && !s.verified)
-                {
+                // it (one per frame), and again every RECONFIRM_EVERY metres until it
+                // is due: the majority of its readings at the same spot decides the
+                // action; where the first reads no turn or STOP sign, the sighting is
+                // dropped
+                if let Some(i) = sightings.iter().position(|s| {
+                    s.peak >= need_f
+                        && (!s.verified
+                            || (s.settled
+                                && odo - s.confirmed_at >= RECONFIRM_EVERY
+                                && odo < s.at - trigger_of(s)))
+                }) {
                     let check =
                         perception
                             .confirm(&input)
@@ -756,10 +803,22 @@ pub fn fly(
                                 },
                             );
                             if let Some((action, dist)) = agrees {
-                                s.action = action;
-                                s.read(odo, dist);
-                                s.verified = true;
-                                s.settled = true;
+                                let (before, was) = (s.action, s.verified);
+                                s.confirmed(action, odo, dist);
+                                if !was || s.action != before {
+                                    events.push(Event {
+                                        t,
+                                        x: pose.x,
+                                        y: pose.y,
+                                        what: format!(
+                                            "{before:?} sign {dist:.2} m ahead confirmed as {:?}",
+                                            s.action
+                                        ),
+                                    });
+                                }
+                            } else if s.verified {
+                                // confirmed before: this reading abstains
+                                s.confirmed_at = odo;
                             } else {
                                 rejections += 1;
                                 let at = s.at;
@@ -784,15 +843,8 @@ pub fn fly(
                 let due = sightings
                     .iter()
                     .filter(|s| {
-                        let trigger = if s.action == NavAction::Stop {
-                            land_distance
-                        } else {
-                            turn_distance
-                        };
-                        s.peak >= need_f
-                            && s.verified
-                            && s.stands_still()
-                            && odo >= s.at - trigger
+                        let trigger = trigger_of(s);
+                        s.peak >= need_f && s.verified && s.stands_still() && odo >= s.at - trigger
                     })
                     .filter(|s| {
                         // contradicted at the same spot (within the matching tolerance of

@@ -470,7 +470,10 @@ fn an_accurate_reading_corrects_a_steadily_mirrored_arrow() {
         }
     };
     for (name, without, with) in fly_cheap(mirrored) {
-        assert!(!without.is_success(), "{name}: mirrored arrows did not matter");
+        assert!(
+            !without.is_success(),
+            "{name}: mirrored arrows did not matter"
+        );
         assert_eq!(with.outcome, Outcome::Success, "{name}: {:?}", with.events);
         assert!(with.confirmations > 0, "{name}");
     }
