@@ -273,7 +273,8 @@ fn the_reference_variant_is_kept_and_checked() {
     let b = Bundle::parse(&bytes).unwrap();
     let body = policy_body_offset(&bytes);
     let mut bad = bytes.clone();
-    bad[body + 6..body + 8].copy_from_slice(&b.variant_count().to_le_bytes());
+    let v = u16::try_from(b.variant_count()).unwrap();
+    bad[body + 6..body + 8].copy_from_slice(&v.to_le_bytes());
     fix_checksums(&mut bad);
     assert_eq!(Bundle::parse(&bad).unwrap_err(), BundleError::BadAction);
 }
