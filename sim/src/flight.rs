@@ -398,8 +398,8 @@ pub struct FlightResult {
     pub sign_hits: u64,
     /// Detections matching no visible sign.
     pub false_detections: u64,
-    /// Confirmations asked of the perception's most accurate detector
-    /// ([`Perception::confirm`]), and how many of them rejected the sign.
+    /// Readings asked of the perception's most accurate detector to confirm a sign
+    /// ([`Perception::confirm`]).
     #[serde(default)]
     pub confirmations: u64,
     /// Of the confirmations, those that did not find the sign where it was read.

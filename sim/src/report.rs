@@ -108,6 +108,12 @@ pub struct Summary {
     pub render_ms: Stat,
     /// In-loop detection recall: frames with a visible sign that were detected.
     pub recall: f64,
+    /// Confirmations by the most accurate detector per flight (all flights).
+    #[serde(default)]
+    pub confirmations: Stat,
+    /// Of all confirmations, the fraction that found no sign where it was read.
+    #[serde(default)]
+    pub rejected: f64,
 }
 
 /// Summarise the flights of one maze (all with the same perception and device).
@@ -147,6 +153,13 @@ pub fn summarize(results: &[FlightResult]) -> Summary {
             hits as f64 / frames as f64
         } else {
             0.0
+        },
+        confirmations: col(&|r| r.confirmations as f64, &all),
+        rejected: {
+            let (c, r) = results.iter().fold((0u64, 0u64), |(c, r), f| {
+                (c + f.confirmations, r + f.rejections)
+            });
+            if c > 0 { r as f64 / c as f64 } else { 0.0 }
         },
     }
 }
@@ -201,6 +214,19 @@ pub fn table(summaries: &[Summary]) -> String {
             summaries
                 .iter()
                 .map(|s| format!("{:.3}", s.recall))
+                .collect(),
+        ),
+        (
+            "Confirmations per flight".into(),
+            summaries
+                .iter()
+                .map(|s| {
+                    format!(
+                        "{} ({:.0}% rejected)",
+                        s.confirmations.show(1),
+                        s.rejected * 100.0
+                    )
+                })
                 .collect(),
         ),
         (
@@ -283,6 +309,8 @@ pub fn write_flights_csv(path: &Path, results: &[FlightResult]) -> Result<(), Re
         "sign_frames",
         "sign_hits",
         "false_detections",
+        "confirmations",
+        "rejections",
     ])
     .map_err(enc)?;
     for r in results {
@@ -309,6 +337,8 @@ pub fn write_flights_csv(path: &Path, results: &[FlightResult]) -> Result<(), Re
             r.sign_frames.to_string(),
             r.sign_hits.to_string(),
             r.false_detections.to_string(),
+            r.confirmations.to_string(),
+            r.rejections.to_string(),
         ])
         .map_err(enc)?;
     }
