@@ -54,6 +54,14 @@ fn written_bundle_verifies_and_the_runtime_decides_as_the_replay() {
     let b = Bundle::parse(&bytes).unwrap();
     assert_eq!(b.variant_count(), 2);
     assert_eq!(b.policy().initial(), policy.initial);
+    // the reference variant, which the drone confirms signs with, is the replay's
+    // static one (the most accurate on the training videos), passed through as trained
+    assert_eq!(policy.reference, Some(1));
+    assert_eq!(b.policy().reference(), 1);
+    let mut other = policy.clone();
+    other.reference = Some(0);
+    let bytes0 = frugal_policies::bundle::policy_bundle(&other, cfg.thresholds()).unwrap();
+    assert_eq!(Bundle::parse(&bytes0).unwrap().policy().reference(), 0);
     for bucket in Bucket::ALL {
         for v in 0..2u16 {
             assert_eq!(
