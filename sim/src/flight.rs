@@ -402,7 +402,8 @@ pub struct FlightResult {
     /// ([`Perception::confirm`]).
     #[serde(default)]
     pub confirmations: u64,
-    /// Of the confirmations, those that did not find the sign where it was read.
+    /// Of the confirmations, those that dropped a sighting: the first reading of it
+    /// found no turn or STOP sign at its spot (a re-reading that finds none abstains).
     #[serde(default)]
     pub rejections: u64,
     /// Trajectory, sampled every 0.25 s and at every mode change.

@@ -111,7 +111,8 @@ pub struct Summary {
     /// Confirmations by the most accurate detector per flight (all flights).
     #[serde(default)]
     pub confirmations: Stat,
-    /// Of all confirmations, the fraction that found no sign where it was read.
+    /// Of all confirmations, the fraction that dropped a sighting
+    /// ([`crate::FlightResult::rejections`]).
     #[serde(default)]
     pub rejected: f64,
 }
