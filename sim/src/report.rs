@@ -450,10 +450,13 @@ fn draw_top<DB: DrawingBackend>(
             Dir::North | Dir::South => ((cx, cy - 1.5 * c), (cx, cy + 1.5 * c)),
             Dir::East | Dir::West => ((cx - 1.5 * c, cy), (cx + 1.5 * c, cy)),
         };
+        // the pedestrian's walk: dashed grey, so that it is not read as a trajectory
         chart
-            .draw_series(LineSeries::new(
+            .draw_series(DashedLineSeries::new(
                 [a, b],
-                RGBColor(230, 120, 0).stroke_width(2),
+                6,
+                4,
+                RGBColor(90, 90, 90).stroke_width(1),
             ))
             .map_err(s)?;
         chart
