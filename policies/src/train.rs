@@ -324,7 +324,8 @@ pub struct TrainedPolicy {
     pub initial: u16,
     /// The most accurate variant on the training videos (the replay's static one),
     /// which the bundle names as its reference ([`frugal_runtime::bundle::Policy::reference`]).
-    /// `None` in policies saved before it existed: the bundle then names the costliest.
+    /// Set by [`train`] / [`train_with`]; `None` from [`solve`] alone and in policies
+    /// saved before it existed: the bundle then names the costliest.
     #[serde(default)]
     pub reference: Option<u16>,
     /// `actions[bucket · V + v]`: the next variant (the bundle's layout).
@@ -397,7 +398,10 @@ pub fn train_with(
             "the log has no training videos",
         ));
     }
-    solve(log, transitions, cfg, training_videos)
+    let mut policy = solve(log, transitions, cfg, training_videos)?;
+    // once per policy, not per solve (the α sweep solves many and needs none)
+    policy.reference = u16::try_from(crate::eval::most_accurate(log, cfg.outcome_iou)).ok();
+    Ok(policy)
 }
 
 /// Solve the MDP of given transitions.
@@ -430,7 +434,7 @@ pub fn solve(
         variants: log.variants.clone(),
         training_videos,
         initial: actions[state(Bucket::Miss, 0, v_n)],
-        reference: u16::try_from(crate::eval::most_accurate(log, cfg.outcome_iou)).ok(),
+        reference: None,
         actions,
         values: vi.values,
         iterations: vi.iterations,

@@ -121,20 +121,9 @@ impl Perception for AdaptivePerception {
             Decision::Detect { variant, .. } => {
                 // the first variant, then any the policy asks for on the same frame
                 let (detectors, counts) = (&mut self.detectors, &mut self.detections_per_variant);
-                let (_, mut found) = self.pilot.detect_with(
-                    &cur,
-                    variant,
-                    |variant| -> Result<_, PerceptionError> {
-                        let v = usize::from(variant);
-                        let det = detectors
-                            .get_mut(v)
-                            .ok_or("the policy names a variant outside the bundle")?;
-                        if let Some(n) = counts.get_mut(v) {
-                            *n += 1;
-                        }
-                        Ok(det.detect(frame)?)
-                    },
-                )?;
+                let (_, mut found) = self.pilot.detect_with(&cur, variant, |variant| {
+                    run_variant(detectors, counts, variant, frame)
+                })?;
                 // the drone acts on reported detections only, as the replay scores them:
                 // those at least the finding variant's T_c
                 let t_c = self.pilot.report_score();
@@ -161,19 +150,33 @@ impl Perception for AdaptivePerception {
             .bundle
             .variant_buckets(reference)
             .map_or(CNN_REPORT_SCORE, |b| b.t_c);
-        let v = usize::from(reference);
-        let det = self
-            .detectors
-            .get_mut(v)
-            .ok_or("the bundle's reference variant has no detector")?;
-        if let Some(n) = self.detections_per_variant.get_mut(v) {
-            *n += 1;
-        }
-        let mut detections = det.detect(input.image)?;
+        let mut detections = run_variant(
+            &mut self.detectors,
+            &mut self.detections_per_variant,
+            reference,
+            input.image,
+        )?;
         detections.retain(|d| d.score >= t_c);
         Ok(Some(Percept {
             detections,
             compute_ms: started.elapsed().as_secs_f64() * 1e3,
         }))
     }
+}
+
+/// Run the bundle's variant `variant` on `frame`, counting it.
+fn run_variant(
+    detectors: &mut [OrtDetector],
+    counts: &mut [u64],
+    variant: frugal_runtime::VariantId,
+    frame: frugal_runtime::FrameRef<'_>,
+) -> Result<Vec<frugal_runtime::Detection>, PerceptionError> {
+    let v = usize::from(variant);
+    let det = detectors
+        .get_mut(v)
+        .ok_or("the bundle names a variant it has no detector for")?;
+    if let Some(n) = counts.get_mut(v) {
+        *n += 1;
+    }
+    Ok(det.detect(frame)?)
 }

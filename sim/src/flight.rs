@@ -73,6 +73,12 @@ const RESTART_APPROACH: f64 = 0.25;
 /// metres flown until the drone acts on it.
 const RECONFIRM_EVERY: f64 = 0.5;
 
+/// How far apart (metres) two readings of a sign `dist` ahead may place it and still
+/// be the same sign: box heights are read to about 15 %.
+fn spot_tolerance(dist: f64) -> f64 {
+    0.5 + 0.15 * dist
+}
+
 fn action_index(a: NavAction) -> usize {
     match a {
         NavAction::TurnLeft => 0,
@@ -746,7 +752,7 @@ pub fn fly(
                     Some((action, dist)) => {
                         streak = None;
                         let at = odo + dist;
-                        let tol = 0.5 + 0.15 * dist;
+                        let tol = spot_tolerance(dist);
                         match sightings
                             .iter_mut()
                             .find(|s| (s.action == action || s.settled) && (s.at - at).abs() <= tol)
@@ -796,7 +802,7 @@ pub fn fly(
                             pending_ms += check.compute_ms.max(0.0);
                             compute_total += check.compute_ms.max(0.0);
                             let s = &mut sightings[i];
-                            let tol = |dist: f64| 0.5 + 0.15 * dist.max(s.dist);
+                            let tol = |dist: f64| spot_tolerance(dist.max(s.dist));
                             let agrees = check.detections.iter().filter_map(reading).find(
                                 |&(action, dist)| {
                                     action != NavAction::Wait
@@ -854,7 +860,7 @@ pub fn fly(
                         // better reading; equally close: the better supported): not
                         // this one
                         !sightings.iter().any(|o| {
-                            let tol = (0.5 + 0.15 * o.dist.max(s.dist)).max(1.0);
+                            let tol = spot_tolerance(o.dist.max(s.dist)).max(1.0);
                             o.action != s.action
                                 && (o.at - s.at).abs() <= tol
                                 && o.peak >= need_f
