@@ -418,6 +418,9 @@ fn run_controlled(
     };
     let mut have_prev = false;
     let mut tracks: Vec<Track> = Vec::new();
+    // a reported detection of the last detection frame has no tracker (as in the
+    // runtime's `Pilot`: the controller is told the track is lost, and detects again)
+    let mut untracked = false;
     let mut score: Option<f32> = None;
     let mut out = VideoRun {
         video: video.id,
@@ -480,6 +483,9 @@ fn run_controlled(
                 }
                 trace.pyramid = true;
                 tracks.retain(|t| t.tracker.is_active());
+                if untracked {
+                    quality = 0.0;
+                }
                 status = bbox.map(|bbox| TrackStatus { bbox, iou, quality });
             }
         }
@@ -518,8 +524,16 @@ fn run_controlled(
                 let dets = reported(log, video, fi, v);
                 if tracker.is_some() {
                     tracks.clear();
+                    untracked = false;
+                    // only a detection in the optimal bucket is carried for up to M
+                    // frames; a good-enough one is reported on its frame alone
+                    let carry = log.buckets(v).c_opt;
                     let cur = Pyramid::new(&mut cur_buf, w, h, levels).map_err(&err)?;
                     for d in dets.iter().take(cfg.max_tracks) {
+                        if d.score < carry {
+                            untracked = true;
+                            continue;
+                        }
                         let mut t = Track {
                             tracker: Tracker::new(params),
                             init: d.bbox,
@@ -532,6 +546,8 @@ fn run_controlled(
                         trace.pyramid = true;
                         if ok {
                             tracks.push(t);
+                        } else {
+                            untracked = true;
                         }
                     }
                 }

@@ -6,7 +6,12 @@
 //!
 //! 1. [`Pilot::decide`] tracks every held box from the previous pyramid into this one,
 //!    tells the controller the worst IoU against its detection and the worst point
-//!    quality, and returns its [`Decision`];
+//!    quality, and returns its [`Decision`]. A reported detection that has no tracker
+//!    counts as a lost track (quality 0), so the controller detects again on this frame
+//!    rather than drop that sign until the next re-initialisation: a detection below
+//!    its variant's optimal bucket (`c_opt`) is reported on its own frame but never
+//!    carried (a false or misread box would be repeated for up to `M` frames), and a
+//!    tracker may fail to start (too few corners on a small box);
 //! 2. on [`Decision::Detect`], run that variant on the frame and hand its detections
 //!    (best first) to [`Pilot::detected`], which re-initialises the trackers; while it
 //!    answers [`Access::Again`] (the detection scored below `T_c`), run the variant it
@@ -58,6 +63,20 @@ pub struct Pilot<'b, const TRACKS: usize, const POINTS: usize> {
     controller: Controller<'b>,
     held: [Held<POINTS>; TRACKS],
     active: usize,
+    limit: usize,
+    /// A reported detection of the last detection frame has no tracker.
+    untracked: bool,
+    work: Work,
+}
+
+/// What the last [`Pilot::decide`] and [`Pilot::detected`] did, for cost accounting.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Work {
+    /// Trackers run by the last [`Pilot::decide`].
+    pub tracked: u32,
+    /// Tracker initialisations tried by [`Pilot::detected`] since the last
+    /// [`Pilot::decide`].
+    pub inits: u32,
 }
 
 impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
@@ -76,7 +95,24 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
                 }
             }; TRACKS],
             active: 0,
+            limit: TRACKS,
+            untracked: false,
+            work: Work {
+                tracked: 0,
+                inits: 0,
+            },
         }
+    }
+
+    /// Track at most `n` boxes (at most `TRACKS`; the default is `TRACKS`).
+    pub fn with_max_tracks(mut self, n: usize) -> Self {
+        self.limit = n.min(TRACKS);
+        self
+    }
+
+    /// What the last frame's calls did.
+    pub const fn work(&self) -> Work {
+        self.work
     }
 
     /// A pilot with given tracker parameters.
@@ -107,11 +143,13 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
         cur: &Pyramid<'_>,
     ) -> Decision {
         let mut status: Option<TrackStatus> = None;
+        self.work = Work::default();
         if let Some(prev) = prev {
             let mut worst = (f32::INFINITY, f32::INFINITY);
             let mut kept = 0;
             for i in 0..self.active.min(TRACKS) {
                 let Some(h) = self.held.get_mut(i) else { break };
+                self.work.tracked += 1;
                 match h.tracker.track(prev, cur) {
                     Ok(o) => {
                         let iou = o.bbox.iou(&h.detection.bbox);
@@ -134,7 +172,7 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
             }
             self.active = kept;
             if let Some(s) = status.as_mut() {
-                s.quality = worst.1;
+                s.quality = if self.untracked { 0.0 } else { worst.1 };
             }
         }
         // the score went to the controller in `detected`
@@ -145,29 +183,54 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
         })
     }
 
-    /// The score at which the current variant's detections are reported (and
-    /// tracked): its family's `T_c`.
+    /// The score at which the current variant's detections are reported: its
+    /// family's `T_c`.
     pub fn report_score(&self) -> f32 {
         self.controller.t_c().unwrap_or(f32::NEG_INFINITY)
     }
 
+    /// The score at which the current variant's detections are tracked: the lower edge
+    /// of its family's optimal bucket, `c_opt`.
+    pub fn track_score(&self) -> f32 {
+        let ctl = &self.controller;
+        ctl.bundle()
+            .variant_buckets(ctl.current_variant())
+            .map_or(f32::INFINITY, |b| b.c_opt)
+    }
+
     /// Hand over the detections (best first) that the last [`Decision::Detect`] (or
     /// [`Access::Again`]) asked for, found on the frame whose pyramid is `cur`: up to
-    /// `TRACKS` of the reported boxes (those scoring at least [`Pilot::report_score`]
-    /// of the variant that found them) are tracked from here, and the best score goes
-    /// to the controller, whose answer is returned: [`Access::Again`] asks for another
-    /// variant on the same frame.
+    /// `TRACKS` (or [`Pilot::with_max_tracks`]) of the reported boxes (those scoring at
+    /// least [`Pilot::report_score`] of the variant that found them) are tracked from
+    /// here if they score at least [`Pilot::track_score`], and the best score goes to
+    /// the controller, whose answer is returned: [`Access::Again`] asks for another
+    /// variant on the same frame. A reported box that is not tracked (below
+    /// `track_score`, or its tracker cannot start) makes the next [`Pilot::decide`]
+    /// detect again.
     pub fn detected(&mut self, cur: &Pyramid<'_>, detections: &[Detection]) -> Access {
         self.active = 0;
+        self.untracked = false;
         let t_c = self.report_score();
-        for d in detections.iter().filter(|d| d.score >= t_c).take(TRACKS) {
+        let carry = self.track_score();
+        for d in detections
+            .iter()
+            .filter(|d| d.score >= t_c)
+            .take(self.limit)
+        {
             let Some(h) = self.held.get_mut(self.active) else {
                 break;
             };
+            if d.score < carry {
+                self.untracked = true;
+                continue;
+            }
             h.tracker.reset();
+            self.work.inits += 1;
             if h.tracker.init(cur, d.bbox).is_ok() {
                 h.detection = *d;
                 self.active += 1;
+            } else {
+                self.untracked = true;
             }
         }
         self.controller

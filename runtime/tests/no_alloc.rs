@@ -187,9 +187,10 @@ fn the_pilot_loop_allocates_nothing_and_follows_two_signs() {
                         score: -100.0,
                         class: 7,
                     },
+                    // in the optimal bucket (a good-enough one is not carried)
                     Detection {
                         bbox: frugal_runtime::BBox::new(4.0, 4.0, 20.0, 20.0),
-                        score: 0.7,
+                        score: 0.92,
                         class: 5,
                     },
                 ];

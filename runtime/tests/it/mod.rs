@@ -1,4 +1,5 @@
 mod bundle;
 mod controller;
 mod opencv;
+mod pilot;
 mod tracker;
