@@ -868,6 +868,20 @@ pub fn fly(
                                 && (o.dist < s.dist || (o.dist == s.dist && o.peak >= s.peak))
                         })
                     })
+                    .filter(|s| {
+                        // superseded by a sighting just beyond it that was read after
+                        // its last reading: the same sign, read short from afar (its
+                        // box too large) and then read right as the drone came closer
+                        !sightings.iter().any(|o| {
+                            let gap = o.at - s.at;
+                            gap > 0.0
+                                && gap <= 2.0 * spot_tolerance(s.dist)
+                                && o.fit.x_max > s.fit.x_max
+                                && o.peak >= need_f
+                                && o.verified
+                                && o.stands_still()
+                        })
+                    })
                     .max_by(|a, b| a.peak.total_cmp(&b.peak))
                     .copied();
                 for s in &mut sightings {
