@@ -66,17 +66,6 @@ pub struct Pilot<'b, const TRACKS: usize, const POINTS: usize> {
     limit: usize,
     /// A reported detection of the last detection frame has no tracker.
     untracked: bool,
-    work: Work,
-}
-
-/// What the last [`Pilot::decide`] and [`Pilot::detected`] did, for cost accounting.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Work {
-    /// Trackers run by the last [`Pilot::decide`].
-    pub tracked: u32,
-    /// Tracker initialisations tried by [`Pilot::detected`] since the last
-    /// [`Pilot::decide`].
-    pub inits: u32,
 }
 
 impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
@@ -97,10 +86,6 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
             active: 0,
             limit: TRACKS,
             untracked: false,
-            work: Work {
-                tracked: 0,
-                inits: 0,
-            },
         }
     }
 
@@ -108,11 +93,6 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
     pub fn with_max_tracks(mut self, n: usize) -> Self {
         self.limit = n.min(TRACKS);
         self
-    }
-
-    /// What the last frame's calls did.
-    pub const fn work(&self) -> Work {
-        self.work
     }
 
     /// A pilot with given tracker parameters.
@@ -143,13 +123,11 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
         cur: &Pyramid<'_>,
     ) -> Decision {
         let mut status: Option<TrackStatus> = None;
-        self.work = Work::default();
         if let Some(prev) = prev {
             let mut worst = (f32::INFINITY, f32::INFINITY);
             let mut kept = 0;
             for i in 0..self.active.min(TRACKS) {
                 let Some(h) = self.held.get_mut(i) else { break };
-                self.work.tracked += 1;
                 match h.tracker.track(prev, cur) {
                     Ok(o) => {
                         let iou = o.bbox.iou(&h.detection.bbox);
@@ -225,7 +203,6 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
                 continue;
             }
             h.tracker.reset();
-            self.work.inits += 1;
             if h.tracker.init(cur, d.bbox).is_ok() {
                 h.detection = *d;
                 self.active += 1;
