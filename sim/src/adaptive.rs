@@ -7,7 +7,7 @@ use crate::perception::{DetectorPerception, FrameInput, Percept, Perception, Per
 use frugal_runtime::onnx::OrtDetector;
 use frugal_runtime::pilot::Pilot;
 use frugal_runtime::track::{Pyramid, rgb_to_gray};
-use frugal_runtime::{Bundle, Decision};
+use frugal_runtime::{Bundle, Decision, Trigger};
 use std::path::Path;
 use std::time::Instant;
 
@@ -47,7 +47,21 @@ pub struct AdaptivePerception {
     label: String,
     /// Detections per variant so far (confirmations included).
     pub detections_per_variant: Vec<u64>,
+    /// Frames detected so far, by the controller's trigger ([`TRIGGERS`] order), and
+    /// confirmations.
+    detections_per_trigger: [u64; TRIGGERS.len()],
+    confirmations: u64,
 }
+
+/// The controller's triggers, in the order [`AdaptivePerception`] counts them.
+const TRIGGERS: [Trigger; 6] = [
+    Trigger::Start,
+    Trigger::Periodic,
+    Trigger::LowScore,
+    Trigger::TrackerLost,
+    Trigger::Drift,
+    Trigger::Reinit,
+];
 
 impl AdaptivePerception {
     /// Open the bundle in `dir` and every ONNX variant it names (up front, so opening
@@ -82,6 +96,8 @@ impl AdaptivePerception {
                     .map_or("bundle".into(), |n| n.to_string_lossy())
             ),
             detections_per_variant: vec![0; n],
+            detections_per_trigger: [0; TRIGGERS.len()],
+            confirmations: 0,
         })
     }
 
@@ -118,7 +134,14 @@ impl Perception for AdaptivePerception {
             None
         };
         let detections = match self.pilot.decide(input.index as u32, prev.as_ref(), &cur) {
-            Decision::Detect { variant, .. } => {
+            Decision::Detect { variant, reason } => {
+                if let Some(n) = TRIGGERS
+                    .iter()
+                    .position(|t| *t == reason)
+                    .and_then(|i| self.detections_per_trigger.get_mut(i))
+                {
+                    *n += 1;
+                }
                 // the first variant, then any the policy asks for on the same frame
                 let (detectors, counts) = (&mut self.detectors, &mut self.detections_per_variant);
                 let (_, mut found) = self.pilot.detect_with(&cur, variant, |variant| {
@@ -145,6 +168,7 @@ impl Perception for AdaptivePerception {
     /// a confirmation is the navigator's question, not a step of the policy.
     fn confirm(&mut self, input: &FrameInput<'_>) -> Result<Option<Percept>, PerceptionError> {
         let started = Instant::now();
+        self.confirmations += 1;
         let reference = self.bundle.policy().reference();
         let t_c = self
             .bundle
@@ -161,6 +185,29 @@ impl Perception for AdaptivePerception {
             detections,
             compute_ms: started.elapsed().as_secs_f64() * 1e3,
         }))
+    }
+
+    /// `frames detected: <trigger>` per controller trigger (the frame's first
+    /// detection; a second one on the same image counts under its variant only),
+    /// `confirmations`, and `runs of <variant>` per bundle variant (every detection,
+    /// second ones and confirmations included).
+    fn counts(&self) -> Vec<(String, u64)> {
+        let triggers = TRIGGERS
+            .iter()
+            .zip(self.detections_per_trigger)
+            .map(|(t, n)| (format!("frames detected: {t:?}"), n));
+        let variants = self
+            .bundle
+            .variants()
+            .zip(&self.detections_per_variant)
+            .map(|((_, v), &n)| (format!("runs of {}", v.name), n));
+        triggers
+            .chain(std::iter::once((
+                "confirmations".to_string(),
+                self.confirmations,
+            )))
+            .chain(variants)
+            .collect()
     }
 }
 

@@ -412,6 +412,10 @@ pub struct FlightResult {
     /// found no turn or STOP sign at its spot (a re-reading that finds none abstains).
     #[serde(default)]
     pub rejections: u64,
+    /// What the perception ran during the flight, by name ([`Perception::counts`]:
+    /// for the adaptive runtime, frames detected by trigger and runs per variant).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub perception_counts: Vec<(String, u64)>,
     /// Trajectory, sampled every 0.25 s and at every mode change.
     pub track: Vec<TrackPoint>,
     /// Turns, waits, landing, collision.
@@ -998,6 +1002,7 @@ pub fn fly(
         false_detections,
         confirmations,
         rejections,
+        perception_counts: perception.counts(),
         track,
         events,
     })

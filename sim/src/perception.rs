@@ -56,6 +56,12 @@ pub trait Perception {
     fn confirm(&mut self, _input: &FrameInput<'_>) -> Result<Option<Percept>, PerceptionError> {
         Ok(None)
     }
+
+    /// What it ran since it was made, by name (the adaptive runtime: detections by
+    /// the controller's trigger and by variant); empty when there is nothing to tell.
+    fn counts(&self) -> Vec<(String, u64)> {
+        Vec::new()
+    }
 }
 
 impl<F> Perception for F

@@ -108,6 +108,37 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
     assert_eq!(cmp[0]["maze"], "easy");
     assert_eq!(cmp[0]["static"]["runs"], 1);
     assert_eq!(cmp[0]["adaptive"]["runs"], 1);
+    // the adaptive flight says what its runtime ran: frames detected by the
+    // controller's trigger (the first frame by `Start`), confirmations, and runs per
+    // variant, which cover every detection and confirmation
+    let flight = &json(&run.join("flights/adaptive/easy/flights.json"))[0];
+    let counts: BTreeMap<String, u64> = flight["perception_counts"]
+        .as_array()
+        .expect("perception_counts")
+        .iter()
+        .map(|c| (c[0].as_str().unwrap().to_string(), c[1].as_u64().unwrap()))
+        .collect();
+    assert_eq!(counts["frames detected: Start"], 1, "{counts:?}");
+    let sum = |prefix: &str| -> u64 {
+        counts
+            .iter()
+            .filter(|(k, _)| k.starts_with(prefix))
+            .map(|(_, n)| n)
+            .sum()
+    };
+    let detected = sum("frames detected: ");
+    assert!(
+        detected >= 1 && detected <= flight["frames"].as_u64().unwrap(),
+        "{counts:?}"
+    );
+    assert_eq!(
+        counts["confirmations"],
+        flight["confirmations"].as_u64().unwrap()
+    );
+    assert!(
+        sum("runs of ") >= detected + counts["confirmations"],
+        "{counts:?}"
+    );
 
     // nothing changed: every stage is skipped and no artifact is touched
     let before = files(&run);
