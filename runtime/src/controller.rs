@@ -83,6 +83,16 @@ pub enum Trigger {
 }
 
 impl Trigger {
+    /// Every trigger, in declaration order (`ALL[t as usize] == t`).
+    pub const ALL: [Trigger; 6] = [
+        Trigger::Start,
+        Trigger::Periodic,
+        Trigger::LowScore,
+        Trigger::TrackerLost,
+        Trigger::Drift,
+        Trigger::Reinit,
+    ];
+
     /// True when this trigger consulted the policy (all but [`Trigger::Start`], which
     /// runs the bundle's initial variant, and [`Trigger::Reinit`]).
     pub const fn queried_policy(self) -> bool {

@@ -47,21 +47,11 @@ pub struct AdaptivePerception {
     label: String,
     /// Detections per variant so far (confirmations included).
     pub detections_per_variant: Vec<u64>,
-    /// Frames detected so far, by the controller's trigger ([`TRIGGERS`] order), and
-    /// confirmations.
-    detections_per_trigger: [u64; TRIGGERS.len()],
+    /// Frames detected so far, by the controller's trigger (indexed as
+    /// [`Trigger::ALL`]), and confirmations.
+    detections_per_trigger: [u64; Trigger::ALL.len()],
     confirmations: u64,
 }
-
-/// The controller's triggers, in the order [`AdaptivePerception`] counts them.
-const TRIGGERS: [Trigger; 6] = [
-    Trigger::Start,
-    Trigger::Periodic,
-    Trigger::LowScore,
-    Trigger::TrackerLost,
-    Trigger::Drift,
-    Trigger::Reinit,
-];
 
 impl AdaptivePerception {
     /// Open the bundle in `dir` and every ONNX variant it names (up front, so opening
@@ -96,7 +86,7 @@ impl AdaptivePerception {
                     .map_or("bundle".into(), |n| n.to_string_lossy())
             ),
             detections_per_variant: vec![0; n],
-            detections_per_trigger: [0; TRIGGERS.len()],
+            detections_per_trigger: [0; Trigger::ALL.len()],
             confirmations: 0,
         })
     }
@@ -135,11 +125,7 @@ impl Perception for AdaptivePerception {
         };
         let detections = match self.pilot.decide(input.index as u32, prev.as_ref(), &cur) {
             Decision::Detect { variant, reason } => {
-                if let Some(n) = TRIGGERS
-                    .iter()
-                    .position(|t| *t == reason)
-                    .and_then(|i| self.detections_per_trigger.get_mut(i))
-                {
+                if let Some(n) = self.detections_per_trigger.get_mut(reason as usize) {
                     *n += 1;
                 }
                 // the first variant, then any the policy asks for on the same frame
@@ -192,7 +178,7 @@ impl Perception for AdaptivePerception {
     /// `confirmations`, and `runs of <variant>` per bundle variant (every detection,
     /// second ones and confirmations included).
     fn counts(&self) -> Vec<(String, u64)> {
-        let triggers = TRIGGERS
+        let triggers = Trigger::ALL
             .iter()
             .zip(self.detections_per_trigger)
             .map(|(t, n)| (format!("frames detected: {t:?}"), n));

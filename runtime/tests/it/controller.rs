@@ -295,3 +295,10 @@ fn accesses_per_image_cap_the_chain() {
         assert_eq!(c.stats().detections as usize, chain);
     }
 }
+
+#[test]
+fn every_trigger_is_listed_at_its_own_index() {
+    for (i, t) in Trigger::ALL.iter().enumerate() {
+        assert_eq!(*t as usize, i, "{t:?}");
+    }
+}
