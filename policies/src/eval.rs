@@ -29,6 +29,7 @@ use crate::train::TrainedPolicy;
 use frugal_data::{Clutter, Light, Split};
 use frugal_models::metrics::{ImageResult, Interpolation, Truth, evaluate, image_counts};
 use frugal_runtime::bundle::{BUCKET_COUNT, Thresholds};
+use frugal_runtime::pilot::Carry;
 use frugal_runtime::track::{Pyramid, Tracker, TrackerParams, rgb_to_gray};
 use frugal_runtime::{
     BBox, Bundle, ClassId, Controller, Decision, Detection, Observation, TrackStatus,
@@ -154,6 +155,31 @@ pub struct EvalConfig {
     pub max_tracks: usize,
     /// Seed of the random strategy.
     pub seed: u64,
+    /// Which detections the tracker strategies carry: `"optimal"` (from the variant's
+    /// `c_opt` up, the default) or `"good-enough"` (from `c_ge` up), as the runtime's
+    /// `Pilot::with_carry`.
+    pub carry: CarryFrom,
+}
+
+/// The bucket from which the tracker strategies carry a detection (the runtime's
+/// [`Carry`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CarryFrom {
+    /// From the variant's optimal bucket up.
+    #[default]
+    Optimal,
+    /// From the variant's good-enough bucket up.
+    GoodEnough,
+}
+
+impl From<CarryFrom> for Carry {
+    fn from(c: CarryFrom) -> Self {
+        match c {
+            CarryFrom::Optimal => Carry::Optimal,
+            CarryFrom::GoodEnough => Carry::GoodEnough,
+        }
+    }
 }
 
 impl Default for EvalConfig {
@@ -168,6 +194,7 @@ impl Default for EvalConfig {
             eval_iou: 0.5,
             max_tracks: 4,
             seed: 7,
+            carry: CarryFrom::Optimal,
         }
     }
 }
@@ -525,9 +552,17 @@ fn run_controlled(
                 if tracker.is_some() {
                     tracks.clear();
                     untracked = false;
-                    // only a detection in the optimal bucket is carried for up to M
-                    // frames; a good-enough one is reported on its frame alone
-                    let carry = log.buckets(v).c_opt;
+                    // only a detection in the optimal bucket (by default) is carried
+                    // for up to M frames; a good-enough one is reported on its frame
+                    // alone. The edges are the bundle's, as the runtime's `Pilot` reads
+                    // them (a policy's calibrated edges even on an uncalibrated log).
+                    let carry =
+                        bundle.variant_buckets(variant).map_or(f32::INFINITY, |b| {
+                            match cfg.carry {
+                                CarryFrom::Optimal => b.c_opt,
+                                CarryFrom::GoodEnough => b.c_ge,
+                            }
+                        });
                     let cur = Pyramid::new(&mut cur_buf, w, h, levels).map_err(&err)?;
                     for d in dets.iter().take(cfg.max_tracks) {
                         if d.score < carry {
@@ -750,6 +785,18 @@ fn run_timed(
         .collect()
 }
 
+/// The static strategy's variant: the policy's reference, the most accurate on the
+/// videos it was trained on; for a policy saved without one, the most accurate on the
+/// log's training videos ([`most_accurate`]). Never chosen on the videos being
+/// evaluated when the log holds only test videos (a held-out log).
+pub fn static_variant(log: &ReplayLog, policy: &TrainedPolicy, iou: f32) -> usize {
+    policy
+        .reference
+        .map(usize::from)
+        .filter(|&v| v < log.variants.len())
+        .unwrap_or_else(|| most_accurate(log, iou))
+}
+
 /// Run every strategy over `videos`, measure the tracker's medians and charge them.
 pub fn run_all(
     log: &ReplayLog,
@@ -759,7 +806,7 @@ pub fn run_all(
     cfg: &EvalConfig,
     strategies: &[Strategy],
 ) -> Result<Runs> {
-    let static_variant = most_accurate(log, cfg.eval_iou);
+    let static_variant = static_variant(log, policy, cfg.eval_iou);
     let mut timings = Timings::default();
     let mut runs = Vec::new();
     for &s in strategies {

@@ -396,15 +396,17 @@ pub fn record(
     })
 }
 
-/// Median wall time (ms) of `det` on `count` frames spread evenly over `videos`, after
-/// one warm-up call, run on the calling thread.
-pub fn time_detector(
-    det: &mut dyn crate::variants::FrameDetector,
+/// Median wall time (ms) of each detector on `count` frames spread evenly over
+/// `videos`, run on the calling thread. The detectors take turns on every frame (one
+/// untimed warm-up round first), so a change of machine load while timing hits them
+/// alike and their ratios hold.
+pub fn time_detectors(
+    dets: &mut [(&str, &mut dyn crate::variants::FrameDetector)],
     frames: &dyn Frames,
     videos: &[VideoLog],
     count: usize,
     max_detections: usize,
-) -> Result<f64> {
+) -> Result<Vec<f64>> {
     let all: Vec<(&VideoLog, &FrameLog)> = videos
         .iter()
         .flat_map(|v| v.frames.iter().map(move |f| (v, f)))
@@ -418,7 +420,7 @@ pub fn time_detector(
     }
     let n = count.clamp(1, all.len());
     let picks: Vec<usize> = (0..n).map(|i| i * all.len() / n).collect();
-    let mut times = Vec::with_capacity(n);
+    let mut times = vec![Vec::with_capacity(n); dets.len()];
     for (k, &i) in std::iter::once(&picks[0]).chain(&picks).enumerate() {
         let (video, f) = all[i];
         let img = frames.load(video.id, f.index)?;
@@ -430,18 +432,25 @@ pub fn time_detector(
             light: video.light,
             truth: &truth,
         };
-        let t0 = std::time::Instant::now();
-        det.detect(img.view(), &ctx, max_detections)
-            .map_err(|message| PolicyError::Detector {
-                variant: "<timing>".into(),
-                video: video.id,
-                frame: f.index,
-                message,
-            })?;
-        if k > 0 {
-            times.push(t0.elapsed().as_secs_f64() * 1e3);
+        for ((name, det), times) in dets.iter_mut().zip(&mut times) {
+            let t0 = std::time::Instant::now();
+            det.detect(img.view(), &ctx, max_detections)
+                .map_err(|message| PolicyError::Detector {
+                    variant: (*name).to_string(),
+                    video: video.id,
+                    frame: f.index,
+                    message,
+                })?;
+            if k > 0 {
+                times.push(t0.elapsed().as_secs_f64() * 1e3);
+            }
         }
     }
-    times.sort_by(f64::total_cmp);
-    Ok(times[times.len() / 2])
+    Ok(times
+        .into_iter()
+        .map(|mut t| {
+            t.sort_by(f64::total_cmp);
+            t[t.len() / 2]
+        })
+        .collect())
 }

@@ -472,16 +472,16 @@ impl VariantSet {
     }
 
     /// The set of a variants file: synthetic detectors are built here, every other
-    /// kind (ONNX, HoG) by the caller through `open`. A variant without a latency is
-    /// timed by `time` (median ms per frame).
+    /// kind (ONNX, HoG) by the caller through `open`. The variants without a latency are
+    /// timed together by `time` (median ms per frame each, in the order given), so a
+    /// timing harness can interleave them and a change of machine load hits them alike.
     pub fn from_file(
         file: &VariantsFile,
         path: &Path,
         mut open: impl FnMut(&VariantInfo) -> Result<Box<dyn FrameDetector>>,
-        mut time: impl FnMut(&str, &mut dyn FrameDetector) -> Result<f64>,
+        time: impl FnOnce(&mut [(&str, &mut dyn FrameDetector)]) -> Result<Vec<f64>>,
     ) -> Result<Self> {
         let mut detectors = Vec::with_capacity(file.variants.len());
-        let mut measured = Vec::with_capacity(file.variants.len());
         for entry in &file.variants {
             let info = VariantInfo {
                 name: entry.name.clone(),
@@ -490,18 +490,42 @@ impl VariantSet {
                 relative_cost: 1.0,
                 source: entry.source.clone(),
             };
-            let mut det = match &info.source {
+            detectors.push(match &info.source {
                 VariantSource::Synthetic(spec) => {
                     Box::new(SyntheticDetector(spec.clone())) as Box<dyn FrameDetector>
                 }
                 VariantSource::Onnx { .. } | VariantSource::Hog { .. } => open(&info)?,
-            };
-            measured.push(match entry.latency_ms {
-                Some(_) => None,
-                None => Some(time(&entry.name, det.as_mut())?),
             });
-            detectors.push(det);
         }
+        let mut untimed: Vec<(&str, &mut dyn FrameDetector)> = file
+            .variants
+            .iter()
+            .zip(detectors.iter_mut())
+            .filter(|(entry, _)| entry.latency_ms.is_none())
+            .map(|(entry, det)| (entry.name.as_str(), det.as_mut() as &mut dyn FrameDetector))
+            .collect();
+        let mut times = if untimed.is_empty() {
+            Vec::new()
+        } else {
+            time(&mut untimed)?
+        };
+        if times.len() != untimed.len() {
+            return Err(PolicyError::invalid(
+                path,
+                "latency_ms",
+                format!("timed {} of {} variants", times.len(), untimed.len()),
+            ));
+        }
+        drop(untimed);
+        times.reverse();
+        let measured: Vec<Option<f64>> = file
+            .variants
+            .iter()
+            .map(|entry| match entry.latency_ms {
+                Some(_) => None,
+                None => times.pop(),
+            })
+            .collect();
         let (families, variants) = file.resolve_with(path, &measured)?;
         // `resolve_with` sorts; pair detectors with their variants by name.
         let mut named: Vec<(String, Box<dyn FrameDetector>)> = file
@@ -527,5 +551,60 @@ impl VariantSet {
     /// The bucket edges of variant `v`.
     pub fn buckets(&self, v: usize) -> Buckets {
         self.families[self.variants[v].family].buckets
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn entry(name: &str, latency_ms: Option<f64>) -> VariantEntry {
+        VariantEntry {
+            name: name.into(),
+            family: "cnn".into(),
+            latency_ms,
+            source: VariantSource::Synthetic(SyntheticSpec::default()),
+        }
+    }
+
+    #[test]
+    fn only_the_untimed_variants_are_timed_together_in_file_order() {
+        let file = VariantsFile {
+            families: Vec::new(),
+            variants: vec![entry("a", Some(5.0)), entry("b", None), entry("c", None)],
+        };
+        let mut asked = Vec::new();
+        let set = VariantSet::from_file(
+            &file,
+            Path::new("variants.toml"),
+            |_| unreachable!("synthetic variants are built in"),
+            |dets| {
+                asked = dets.iter().map(|(n, _)| n.to_string()).collect();
+                Ok(vec![7.0, 3.0])
+            },
+        )
+        .expect("set");
+        assert_eq!(asked, ["b", "c"]);
+        let ms = |n: &str| {
+            set.variants
+                .iter()
+                .find(|v| v.name == n)
+                .map(|v| v.latency_ms)
+        };
+        assert_eq!(
+            (ms("a"), ms("b"), ms("c")),
+            (Some(5.0), Some(7.0), Some(3.0))
+        );
+        assert_eq!(set.detectors.len(), 3);
+
+        let Err(err) = VariantSet::from_file(
+            &file,
+            Path::new("variants.toml"),
+            |_| unreachable!(),
+            |_| Ok(vec![7.0]),
+        ) else {
+            panic!("a missing time is an error");
+        };
+        assert!(err.to_string().contains("timed 1 of 2"), "{err}");
     }
 }

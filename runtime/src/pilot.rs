@@ -10,8 +10,9 @@
 //!    counts as a lost track (quality 0), so the controller detects again on this frame
 //!    rather than drop that sign until the next re-initialisation: a detection below
 //!    its variant's optimal bucket (`c_opt`) is reported on its own frame but never
-//!    carried (a false or misread box would be repeated for up to `M` frames), and a
-//!    tracker may fail to start (too few corners on a small box);
+//!    carried (a false or misread box would be repeated for up to `M` frames; see
+//!    [`Carry`] for the other choice), and a tracker may fail to start (too few
+//!    corners on a small box);
 //! 2. on [`Decision::Detect`], run that variant on the frame and hand its detections
 //!    (best first) to [`Pilot::detected`], which re-initialises the trackers; while it
 //!    answers [`Access::Again`] (the detection scored below `T_c`), run the variant it
@@ -49,6 +50,24 @@ use crate::controller::{Access, Controller, Decision, Observation, TrackStatus};
 use crate::geom::{BBox, Detection, VariantId};
 use crate::track::{Pyramid, Tracker, TrackerParams};
 
+/// Which reported detections the [`Pilot`] carries with a tracker between detections.
+///
+/// The default, [`Carry::Optimal`], keeps a misread box from being repeated for up to
+/// `M` frames, at the cost of detecting again after every merely good-enough detection.
+/// [`Carry::GoodEnough`] is for a caller that checks a reading before acting on it
+/// (the maze flights confirm a sign with the most accurate variant before turning) and
+/// would rather spend the compute on frames: it carries every detection of the
+/// adequate bucket up. Either way a reported detection that is not carried makes the
+/// next frame a detection frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Carry {
+    /// From the variant's optimal bucket up (`c_opt`).
+    #[default]
+    Optimal,
+    /// From the variant's good-enough bucket up (`c_ge`).
+    GoodEnough,
+}
+
 /// One held track: its tracker and the detection it started from.
 #[derive(Clone, Debug)]
 struct Held<const POINTS: usize> {
@@ -64,6 +83,7 @@ pub struct Pilot<'b, const TRACKS: usize, const POINTS: usize> {
     held: [Held<POINTS>; TRACKS],
     active: usize,
     limit: usize,
+    carry: Carry,
     /// A reported detection of the last detection frame has no tracker.
     untracked: bool,
 }
@@ -85,8 +105,20 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
             }; TRACKS],
             active: 0,
             limit: TRACKS,
+            carry: Carry::Optimal,
             untracked: false,
         }
+    }
+
+    /// Carry detections from `carry`'s bucket up (the default is [`Carry::Optimal`]).
+    pub const fn with_carry(mut self, carry: Carry) -> Self {
+        self.carry = carry;
+        self
+    }
+
+    /// Which detections are carried.
+    pub const fn carry(&self) -> Carry {
+        self.carry
     }
 
     /// Track at most `n` boxes (at most `TRACKS`; the default is `TRACKS`).
@@ -168,12 +200,16 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
     }
 
     /// The score at which the current variant's detections are tracked: the lower edge
-    /// of its family's optimal bucket, `c_opt`.
+    /// of its family's optimal bucket, `c_opt` (good-enough bucket, `c_ge`, under
+    /// [`Carry::GoodEnough`]).
     pub fn track_score(&self) -> f32 {
         let ctl = &self.controller;
         ctl.bundle()
             .variant_buckets(ctl.current_variant())
-            .map_or(f32::INFINITY, |b| b.c_opt)
+            .map_or(f32::INFINITY, |b| match self.carry {
+                Carry::Optimal => b.c_opt,
+                Carry::GoodEnough => b.c_ge,
+            })
     }
 
     /// Hand over the detections (best first) that the last [`Decision::Detect`] (or

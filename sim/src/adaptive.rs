@@ -5,7 +5,7 @@
 //! (`frugal-runtime`'s `drone_loop` example).
 use crate::perception::{DetectorPerception, FrameInput, Percept, Perception, PerceptionError};
 use frugal_runtime::onnx::OrtDetector;
-use frugal_runtime::pilot::Pilot;
+use frugal_runtime::pilot::{Carry, Pilot};
 use frugal_runtime::track::{Pyramid, rgb_to_gray};
 use frugal_runtime::{Bundle, Decision, Trigger};
 use std::path::Path;
@@ -89,6 +89,18 @@ impl AdaptivePerception {
             detections_per_trigger: [0; Trigger::ALL.len()],
             confirmations: 0,
         })
+    }
+
+    /// Carry detections from `carry`'s bucket up ([`Pilot::with_carry`]; the default
+    /// is [`Carry::Optimal`]). Call before the first frame.
+    pub fn with_carry(mut self, carry: Carry) -> Self {
+        self.pilot = Pilot::new(self.bundle).with_carry(carry);
+        let kind = match carry {
+            Carry::Optimal => "",
+            Carry::GoodEnough => "-carry-ge",
+        };
+        self.label.push_str(kind);
+        self
     }
 
     /// The parsed bundle.

@@ -33,6 +33,11 @@ pub struct FlyArgs {
     /// The bundle folder of `--perception adaptive`.
     #[arg(long)]
     pub bundle: Option<PathBuf>,
+    /// Which detections the adaptive runtime carries with its trackers: from the
+    /// optimal bucket up (the default, as the replay evaluation) or from the
+    /// good-enough bucket up (the flight confirms a sign before acting on it).
+    #[arg(long, value_enum, default_value_t = CarryArg::Optimal)]
+    pub carry: CarryArg,
     /// ONNX Runtime intra-op threads for detector-based perception.
     #[arg(long, default_value_t = 1)]
     pub threads: usize,
@@ -71,6 +76,15 @@ pub struct FlyArgs {
     pub quiet: bool,
 }
 
+/// `--carry` choices (the runtime's `Carry`).
+#[derive(ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CarryArg {
+    /// From the variant's `c_opt` up.
+    Optimal,
+    /// From the variant's `c_ge` up.
+    GoodEnough,
+}
+
 /// Perception choices.
 #[derive(ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PerceptionKind {
@@ -106,7 +120,11 @@ fn perception(args: &FlyArgs) -> anyhow::Result<Box<dyn Perception>> {
                 .context("--perception adaptive needs --bundle DIR (from `frugal bundle write`)")?;
             Box::new(
                 frugal_sim::AdaptivePerception::open(dir, args.threads)
-                    .map_err(|e| anyhow::anyhow!("{e}"))?,
+                    .map_err(|e| anyhow::anyhow!("{e}"))?
+                    .with_carry(match args.carry {
+                        CarryArg::Optimal => frugal_runtime::pilot::Carry::Optimal,
+                        CarryArg::GoodEnough => frugal_runtime::pilot::Carry::GoodEnough,
+                    }),
             )
         }
     })

@@ -10,7 +10,7 @@ use anyhow::Context;
 use clap::{Args, Subcommand};
 use frugal_data::{Dataset, Split};
 use frugal_policies::eval::EvalConfig;
-use frugal_policies::replay::{DEFAULT_MAX_DETECTIONS, DatasetFrames, record, time_detector};
+use frugal_policies::replay::{DEFAULT_MAX_DETECTIONS, DatasetFrames, record, time_detectors};
 use frugal_policies::report::{
     evaluate_and_write, kul_tables, policy_table, score_table, train_and_write, write_per_class,
 };
@@ -268,12 +268,15 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
                 &file,
                 &a.variants,
                 |v| open_detector(v, a.threads, &mut models),
-                |name, det| {
-                    let ms = time_detector(det, &frames, &videos, a.time_frames, a.max_detections)?;
-                    println!(
-                        "timed {name}: median {ms:.3} ms/frame over {} frames",
-                        a.time_frames
-                    );
+                |dets| {
+                    let ms =
+                        time_detectors(dets, &frames, &videos, a.time_frames, a.max_detections)?;
+                    for ((name, _), ms) in dets.iter().zip(&ms) {
+                        println!(
+                            "timed {name}: median {ms:.3} ms/frame over {} frames (variants taking turns)",
+                            a.time_frames
+                        );
+                    }
                     Ok(ms)
                 },
             )?;

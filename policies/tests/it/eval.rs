@@ -244,3 +244,52 @@ fn an_unsure_detection_reruns_the_policys_choice_on_the_same_frame() {
     // the fixture's cheap variant is unsure when blind; asking again finds the sign
     assert!(paper_runs.f1 > single.f1, "{paper_runs:?} vs {single:?}");
 }
+
+#[test]
+fn a_held_out_log_is_compared_with_the_policys_static_variant_not_its_own_best() {
+    let (log, frames) = log2();
+    let policy = paper_policy(&log);
+    assert_eq!(
+        policy.reference,
+        Some(1),
+        "most accurate on the training videos"
+    );
+    // a held-out log holds test videos only; on these, make the cheap variant the
+    // most accurate by giving it the expensive one's detections
+    let mut held_out = log.clone();
+    held_out.videos.retain(|v| v.split == Split::Test);
+    for v in &mut held_out.videos {
+        for f in &mut v.frames {
+            f.detections[0] = f.detections[1].clone();
+        }
+    }
+    assert_eq!(
+        frugal_policies::eval::most_accurate(&held_out, 0.5),
+        0,
+        "the held-out videos alone would pick the cheap variant"
+    );
+    let videos: Vec<&VideoLog> = held_out.videos.iter().collect();
+    let cfg = EvalConfig::default();
+    let runs = run_all(
+        &held_out,
+        &policy,
+        &videos,
+        Some(&frames),
+        &cfg,
+        &[Strategy::Static],
+    )
+    .unwrap();
+    assert_eq!(runs.static_variant, 1, "the policy's reference");
+    let mut unset = policy.clone();
+    unset.reference = None;
+    let runs = run_all(
+        &held_out,
+        &unset,
+        &videos,
+        Some(&frames),
+        &cfg,
+        &[Strategy::Static],
+    )
+    .unwrap();
+    assert_eq!(runs.static_variant, 0, "no reference: the log's own best");
+}

@@ -1,10 +1,11 @@
 //! The pilot carries only what it can trust: a detection in its variant's optimal
 //! bucket is tracked; a good-enough one, or one whose tracker cannot start, is
-//! reported on its frame and the next frame is detected again.
+//! reported on its frame and the next frame is detected again. Carrying from the
+//! good-enough bucket (`Carry::GoodEnough`) moves that line down to `c_ge`.
 
 use frugal_runtime::bundle::write::{BundleWriter, FamilySpec, VariantSpec};
 use frugal_runtime::bundle::{ScoreBuckets, Thresholds};
-use frugal_runtime::pilot::Pilot;
+use frugal_runtime::pilot::{Carry, Pilot};
 use frugal_runtime::synth::{ClipSpec, make_clip};
 use frugal_runtime::track::{GrayImage, Pyramid};
 use frugal_runtime::{Access, BBox, Bundle, Decision, Detection, Trigger};
@@ -35,6 +36,7 @@ fn bundle_bytes() -> Vec<u8> {
 /// a detection frame, the tracked ones else).
 fn fly(
     frames: usize,
+    carry: Carry,
     found: impl Fn(usize) -> Vec<Detection>,
     blank: Option<(usize, usize, usize, usize)>,
 ) -> Vec<(Decision, Vec<Detection>)> {
@@ -51,7 +53,7 @@ fn fly(
     let need = Pyramid::required_len(w, h, 3).unwrap();
     let (mut a, mut b) = (vec![0u8; need], vec![0u8; need]);
     let bytes = bundle_bytes();
-    let mut pilot: Pilot<'_, 4, 48> = Pilot::new(Bundle::parse(&bytes).unwrap());
+    let mut pilot: Pilot<'_, 4, 48> = Pilot::new(Bundle::parse(&bytes).unwrap()).with_carry(carry);
     let mut prev = Pyramid::new(&mut a, w, h, 3).unwrap();
     let mut cur = Pyramid::new(&mut b, w, h, 3).unwrap();
     let mut out = Vec::new();
@@ -95,7 +97,7 @@ fn detections(run: &[(Decision, Vec<Detection>)]) -> usize {
 
 #[test]
 fn an_optimal_detection_is_carried_by_the_tracker() {
-    let run = fly(10, |_| vec![sign(0.95)], None);
+    let run = fly(10, Carry::Optimal, |_| vec![sign(0.95)], None);
     // detected at the start, tracked until the re-initialisation at M = 10
     assert_eq!(detections(&run), 1, "{run:?}");
     for (decision, shown) in &run[1..] {
@@ -109,7 +111,7 @@ fn an_optimal_detection_is_carried_by_the_tracker() {
 fn a_good_enough_detection_is_reported_but_detected_again_not_carried() {
     // 0.7: at least T_c (reported, and the controller is content with the score) but
     // below c_opt
-    let run = fly(10, |_| vec![sign(0.7)], None);
+    let run = fly(10, Carry::Optimal, |_| vec![sign(0.7)], None);
     assert_eq!(detections(&run), 10, "{run:?}");
     for (decision, shown) in &run[1..] {
         assert!(
@@ -127,6 +129,7 @@ fn a_good_enough_detection_is_reported_but_detected_again_not_carried() {
     // an optimal box beside it is carried, but the frames are still detected again
     let run = fly(
         10,
+        Carry::Optimal,
         |_| {
             let mut far = sign(0.7);
             far.bbox = BBox::new(10.0, 10.0, 40.0, 40.0);
@@ -147,7 +150,24 @@ fn a_detection_whose_tracker_cannot_start_is_detected_again() {
         score: 0.95,
         class: 4,
     };
-    let run = fly(5, |_| vec![sign(0.95), far], Some((105, 5, 155, 55)));
+    let run = fly(
+        5,
+        Carry::Optimal,
+        |_| vec![sign(0.95), far],
+        Some((105, 5, 155, 55)),
+    );
     assert_eq!(detections(&run), 5, "{run:?}");
     assert!(run.iter().all(|(_, shown)| shown.len() == 2), "{run:?}");
+}
+
+#[test]
+fn carrying_from_good_enough_tracks_a_good_enough_detection_but_not_a_weaker_one() {
+    // 0.7 is in the good-enough bucket [c_ge 0.6, c_opt 0.9): carried under GoodEnough
+    let run = fly(10, Carry::GoodEnough, |_| vec![sign(0.7)], None);
+    assert_eq!(detections(&run), 1, "{run:?}");
+    assert!(run.iter().all(|(_, shown)| shown.len() == 1), "{run:?}");
+    // 0.55 is reported (T_c 0.5) but below c_ge: detected again on every frame
+    let run = fly(10, Carry::GoodEnough, |_| vec![sign(0.55)], None);
+    assert_eq!(detections(&run), 10, "{run:?}");
+    assert!(run.iter().all(|(_, shown)| shown.len() == 1), "{run:?}");
 }
