@@ -115,4 +115,14 @@ fn fly_reports_bad_maze_lines_and_unknown_devices() {
     ])
     .expect_err("device");
     assert!(e.contains("unknown device profile `pdp11`"), "{e}");
+    let e = frugal(&[
+        "fly",
+        "--maze",
+        p(&maze("easy.maze")),
+        "--carry",
+        "good-enough",
+        "--quiet",
+    ])
+    .expect_err("carry without the adaptive runtime");
+    assert!(e.contains("--carry") && e.contains("adaptive"), "{e}");
 }

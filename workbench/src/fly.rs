@@ -147,6 +147,10 @@ pub fn run(args: FlyArgs) -> anyhow::Result<()> {
     }
     anyhow::ensure!(args.seeds >= 1, "--seeds must be at least 1");
     anyhow::ensure!(
+        args.carry == CarryArg::Optimal || args.perception == PerceptionKind::Adaptive,
+        "--carry good-enough applies to the adaptive runtime's trackers (--perception adaptive)"
+    );
+    anyhow::ensure!(
         args.gt_compute_ms >= 0.0,
         "--gt-compute-ms must not be negative"
     );
