@@ -556,13 +556,9 @@ fn run_controlled(
                     // for up to M frames; a good-enough one is reported on its frame
                     // alone. The edges are the bundle's, as the runtime's `Pilot` reads
                     // them (a policy's calibrated edges even on an uncalibrated log).
-                    let carry =
-                        bundle.variant_buckets(variant).map_or(f32::INFINITY, |b| {
-                            match cfg.carry {
-                                CarryFrom::Optimal => b.c_opt,
-                                CarryFrom::GoodEnough => b.c_ge,
-                            }
-                        });
+                    let carry = bundle
+                        .variant_buckets(variant)
+                        .map_or(f32::INFINITY, |b| Carry::from(cfg.carry).edge(&b));
                     let cur = Pyramid::new(&mut cur_buf, w, h, levels).map_err(&err)?;
                     for d in dets.iter().take(cfg.max_tracks) {
                         if d.score < carry {

@@ -504,7 +504,7 @@ impl VariantSet {
             .filter(|(entry, _)| entry.latency_ms.is_none())
             .map(|(entry, det)| (entry.name.as_str(), det.as_mut() as &mut dyn FrameDetector))
             .collect();
-        let mut times = if untimed.is_empty() {
+        let times = if untimed.is_empty() {
             Vec::new()
         } else {
             time(&mut untimed)?
@@ -517,14 +517,11 @@ impl VariantSet {
             ));
         }
         drop(untimed);
-        times.reverse();
+        let mut times = times.into_iter();
         let measured: Vec<Option<f64>> = file
             .variants
             .iter()
-            .map(|entry| match entry.latency_ms {
-                Some(_) => None,
-                None => times.pop(),
-            })
+            .map(|entry| entry.latency_ms.map_or_else(|| times.next(), |_| None))
             .collect();
         let (families, variants) = file.resolve_with(path, &measured)?;
         // `resolve_with` sorts; pair detectors with their variants by name.

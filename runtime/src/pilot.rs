@@ -45,7 +45,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
-use crate::bundle::Bundle;
+use crate::bundle::{Bundle, ScoreBuckets};
 use crate::controller::{Access, Controller, Decision, Observation, TrackStatus};
 use crate::geom::{BBox, Detection, VariantId};
 use crate::track::{Pyramid, Tracker, TrackerParams};
@@ -66,6 +66,16 @@ pub enum Carry {
     Optimal,
     /// From the variant's good-enough bucket up (`c_ge`).
     GoodEnough,
+}
+
+impl Carry {
+    /// The lowest score carried, on the scale of `buckets`.
+    pub const fn edge(self, buckets: &ScoreBuckets) -> f32 {
+        match self {
+            Carry::Optimal => buckets.c_opt,
+            Carry::GoodEnough => buckets.c_ge,
+        }
+    }
 }
 
 /// One held track: its tracker and the detection it started from.
@@ -206,10 +216,7 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
         let ctl = &self.controller;
         ctl.bundle()
             .variant_buckets(ctl.current_variant())
-            .map_or(f32::INFINITY, |b| match self.carry {
-                Carry::Optimal => b.c_opt,
-                Carry::GoodEnough => b.c_ge,
-            })
+            .map_or(f32::INFINITY, |b| self.carry.edge(&b))
     }
 
     /// Hand over the detections (best first) that the last [`Decision::Detect`] (or
