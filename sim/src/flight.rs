@@ -73,6 +73,19 @@ const RESTART_APPROACH: f64 = 0.25;
 /// metres flown until the drone acts on it.
 const RECONFIRM_EVERY: f64 = 0.5;
 
+/// One reading per sign: a detection is dropped when a higher-scoring one of any class
+/// covers the same box (IoU ≥ 0.5). The detectors suppress overlaps per class, so a
+/// WAIT pictogram can come back as WAIT at 0.9 and as a turn at 0.55; without this,
+/// a confirmation found the turn among the reference detector's boxes and the drone
+/// turned 21 m early into a wall (session 8, hard maze, tx2-like).
+fn outranked_dropped(detections: &[Detection]) -> impl Iterator<Item = &Detection> {
+    detections.iter().filter(move |d| {
+        !detections
+            .iter()
+            .any(|e| e.score > d.score && e.bbox.iou(&d.bbox) >= 0.5)
+    })
+}
+
 /// How far apart (metres) two readings of a sign `dist` ahead may place it and still
 /// be the same sign: box heights are read to about 15 %.
 fn spot_tolerance(dist: f64) -> f64 {
@@ -730,7 +743,7 @@ pub fn fly(
                     acts.then_some((action, dist))
                 };
                 // the first detection this frame that would make the drone act …
-                let candidate = percept.detections.iter().find_map(reading);
+                let candidate = outranked_dropped(&percept.detections).find_map(reading);
                 let need = nav.confirm_frames.max(1);
                 match candidate {
                     Some((NavAction::Wait, dist)) => {
@@ -807,12 +820,12 @@ pub fn fly(
                             compute_total += check.compute_ms.max(0.0);
                             let s = &mut sightings[i];
                             let tol = |dist: f64| spot_tolerance(dist.max(s.dist));
-                            let agrees = check.detections.iter().filter_map(reading).find(
-                                |&(action, dist)| {
+                            let agrees = outranked_dropped(&check.detections)
+                                .filter_map(reading)
+                                .find(|&(action, dist)| {
                                     action != NavAction::Wait
                                         && (odo + dist - s.at).abs() <= tol(dist)
-                                },
-                            );
+                                });
                             if let Some((action, dist)) = agrees {
                                 let (before, was) = (s.action, s.verified);
                                 s.confirmed(action, odo, dist);
@@ -909,6 +922,7 @@ pub fn fly(
                     Some(Sighting {
                         action: action @ (NavAction::TurnLeft | NavAction::TurnRight),
                         dist,
+                        fit,
                         ..
                     }) if mode == Mode::Cruise => {
                         sightings.clear();
@@ -922,8 +936,11 @@ pub fn fly(
                             x: pose.x,
                             y: pose.y,
                             what: format!(
-                                "turn {} (last read at {dist:.2} m)",
-                                if left { "left" } else { "right" }
+                                "turn {} (last read at {dist:.2} m; {} readings over {:.2} m, approach {:.2})",
+                                if left { "left" } else { "right" },
+                                fit.n,
+                                fit.span(),
+                                fit.approach().unwrap_or(f64::NAN)
                             ),
                         });
                     }
@@ -1046,6 +1063,36 @@ fn score(
 mod tests {
     use super::*;
     use std::path::Path;
+
+    #[test]
+    fn a_sign_read_as_two_classes_counts_once_as_its_best_class() {
+        use frugal_runtime::BBox;
+        let det = |class: Sign, score: f32, x: f32| Detection {
+            bbox: BBox::new(x, 100.0, x + 24.0, 124.0),
+            score,
+            class: class.id(),
+        };
+        // the WAIT pictogram, also read as a turn at a lower score (per-class NMS
+        // keeps both), and a real turn sign elsewhere in the frame
+        let dets = [
+            det(Sign::TurnRight, 0.55, 101.0),
+            det(Sign::Wait, 0.9, 100.0),
+            det(Sign::TurnRight, 0.6, 300.0),
+        ];
+        let kept: Vec<(Option<Sign>, f32)> = outranked_dropped(&dets)
+            .map(|d| (Sign::from_id(d.class), d.score))
+            .collect();
+        assert_eq!(
+            kept,
+            vec![(Some(Sign::Wait), 0.9), (Some(Sign::TurnRight), 0.6)]
+        );
+        // boxes that merely touch are two signs
+        let apart = [
+            det(Sign::Wait, 0.9, 100.0),
+            det(Sign::TurnRight, 0.55, 118.0),
+        ];
+        assert_eq!(outranked_dropped(&apart).count(), 2);
+    }
 
     #[test]
     fn collision_disc_against_cells() {

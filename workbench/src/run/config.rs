@@ -586,6 +586,36 @@ mod tests {
     }
 
     #[test]
+    fn the_shipped_flight_config_shares_the_default_data_and_detector_and_adds_cheap_variants() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/flight.toml");
+        let cfg = RunConfig::load(Some(&path), Profile::Default).unwrap();
+        cfg.check(&path).unwrap();
+        let default = RunConfig::profile(Profile::Default).unwrap();
+        // the data and detector stages hash the same sections, so a default run's
+        // folders are reused
+        assert_eq!(cfg.data, default.data);
+        assert_eq!(cfg.detector, default.detector);
+        assert_eq!(cfg.evaluation, default.evaluation);
+        assert_eq!(cfg.policy, default.policy);
+        let names = |g: &Grid| {
+            g.variants
+                .iter()
+                .map(|v| v.name.clone())
+                .collect::<Vec<_>>()
+        };
+        let (ours, theirs) = (names(&cfg.compress), names(&default.compress));
+        assert!(theirs.iter().all(|n| ours.contains(n)), "{ours:?}");
+        assert!(ours.contains(&"ch50-p20-int8".to_string()), "{ours:?}");
+        let ch50 = cfg
+            .compress
+            .variants
+            .iter()
+            .find(|v| v.name == "ch50")
+            .unwrap();
+        assert_eq!((ch50.steps, cfg.compress.finetune.frames), (Some(1000), 0));
+    }
+
+    #[test]
     fn tagged_values_replace_rather_than_merge() {
         let cfg = load("[compress]\ncalibration = { method = \"min_max\" }\n").unwrap();
         assert_eq!(
