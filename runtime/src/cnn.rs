@@ -89,10 +89,20 @@ fn by_score(scores: &[f32], a: usize, b: usize) -> core::cmp::Ordering {
 /// Greedy non-maximum suppression: indices of the kept boxes, best score first. A box
 /// is dropped when its IoU with an already kept box is above `iou`.
 pub fn nms(boxes: &[BBox], scores: &[f32], iou: f32) -> Vec<usize> {
+    nms_first(boxes, scores, iou, usize::MAX)
+}
+
+/// The first `limit` boxes [`nms`] keeps (the same boxes as truncating its result):
+/// the search stops once `limit` are kept, instead of comparing every remaining box
+/// with every kept one.
+pub fn nms_first(boxes: &[BBox], scores: &[f32], iou: f32, limit: usize) -> Vec<usize> {
     let mut order: Vec<usize> = (0..boxes.len().min(scores.len())).collect();
     order.sort_by(|&a, &b| by_score(scores, a, b));
     let mut keep: Vec<usize> = Vec::new();
     for i in order {
+        if keep.len() >= limit {
+            break;
+        }
         let Some(bi) = boxes.get(i) else { continue };
         if keep
             .iter()
@@ -226,9 +236,8 @@ pub fn proposals(
             cand_scores.push(score);
         }
     }
-    let mut keep = nms(&cand, &cand_scores, p.nms_iou);
-    keep.truncate(p.post_nms);
-    keep.into_iter()
+    nms_first(&cand, &cand_scores, p.nms_iou, p.post_nms)
+        .into_iter()
         .filter_map(|i| cand.get(i).copied())
         .collect()
 }
@@ -329,6 +338,40 @@ mod tests {
         let rois = [BBox::new(0.0, 0.0, 10.0, 10.0); 3];
         assert!(detections(&[0.0; 4], &[0.0; 3], &rois, (20.0, 20.0), dp).is_empty());
         assert!(nms(&rois, &[1.0], 0.5).len() == 1);
+    }
+
+    #[test]
+    fn nms_first_keeps_the_same_boxes_as_truncating_nms() {
+        // a deterministic cloud of overlapping boxes with tied and distinct scores
+        let mut state = 0x2545_f491_u32;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            (state % 1000) as f32 / 10.0
+        };
+        let boxes: std::vec::Vec<BBox> = (0..300)
+            .map(|_| {
+                let (x, y, w, h) = (next(), next(), 5.0 + next() / 4.0, 5.0 + next() / 4.0);
+                BBox::new(x, y, x + w, y + h)
+            })
+            .collect();
+        let scores: std::vec::Vec<f32> = (0..300).map(|_| (next() / 10.0).floor()).collect();
+        for iou in [0.3, 0.5, 0.7] {
+            let all = nms(&boxes, &scores, iou);
+            assert!(
+                all.len() > 20,
+                "the cloud must leave more than the limits below"
+            );
+            for limit in [0, 1, 5, 20, all.len(), all.len() + 10] {
+                let first = nms_first(&boxes, &scores, iou, limit);
+                assert_eq!(
+                    first,
+                    all[..limit.min(all.len())],
+                    "iou {iou} limit {limit}"
+                );
+            }
+        }
     }
 
     #[test]

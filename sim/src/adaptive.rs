@@ -45,12 +45,18 @@ pub struct AdaptivePerception {
     size: (usize, usize),
     have_prev: bool,
     label: String,
-    /// Detections per variant so far (confirmations included).
-    pub detections_per_variant: Vec<u64>,
+    /// Runs and compute time (µs) per variant so far (confirmations included).
+    runs_per_variant: Vec<VariantRuns>,
     /// Frames detected so far, by the controller's trigger (indexed as
     /// [`Trigger::ALL`]), and confirmations.
     detections_per_trigger: [u64; Trigger::ALL.len()],
     confirmations: u64,
+    /// Frames the pilot only tracked.
+    tracked_frames: u64,
+    /// Compute time of tracked frames and of detection frames, µs (pyramid, tracking
+    /// and the decision included).
+    tracked_us: u64,
+    detected_us: u64,
 }
 
 impl AdaptivePerception {
@@ -85,9 +91,12 @@ impl AdaptivePerception {
                 dir.file_name()
                     .map_or("bundle".into(), |n| n.to_string_lossy())
             ),
-            detections_per_variant: vec![0; n],
+            runs_per_variant: vec![VariantRuns::default(); n],
             detections_per_trigger: [0; Trigger::ALL.len()],
             confirmations: 0,
+            tracked_frames: 0,
+            tracked_us: 0,
+            detected_us: 0,
         })
     }
 
@@ -135,13 +144,14 @@ impl Perception for AdaptivePerception {
         } else {
             None
         };
-        let detections = match self.pilot.decide(input.index as u32, prev.as_ref(), &cur) {
+        let decision = self.pilot.decide(input.index as u32, prev.as_ref(), &cur);
+        let detections = match decision {
             Decision::Detect { variant, reason } => {
                 if let Some(n) = self.detections_per_trigger.get_mut(reason as usize) {
                     *n += 1;
                 }
                 // the first variant, then any the policy asks for on the same frame
-                let (detectors, counts) = (&mut self.detectors, &mut self.detections_per_variant);
+                let (detectors, counts) = (&mut self.detectors, &mut self.runs_per_variant);
                 let (_, mut found) = self.pilot.detect_with(&cur, variant, |variant| {
                     run_variant(detectors, counts, variant, frame)
                 })?;
@@ -155,9 +165,17 @@ impl Perception for AdaptivePerception {
         };
         std::mem::swap(&mut self.prev, &mut self.cur);
         self.have_prev = true;
+        let elapsed = started.elapsed();
+        let us = u64::try_from(elapsed.as_micros()).unwrap_or(u64::MAX);
+        if decision == Decision::Track {
+            self.tracked_frames += 1;
+            self.tracked_us = self.tracked_us.saturating_add(us);
+        } else {
+            self.detected_us = self.detected_us.saturating_add(us);
+        }
         Ok(Percept {
             detections,
-            compute_ms: started.elapsed().as_secs_f64() * 1e3,
+            compute_ms: elapsed.as_secs_f64() * 1e3,
         })
     }
 
@@ -174,7 +192,7 @@ impl Perception for AdaptivePerception {
             .map_or(CNN_REPORT_SCORE, |b| b.t_c);
         let mut detections = run_variant(
             &mut self.detectors,
-            &mut self.detections_per_variant,
+            &mut self.runs_per_variant,
             reference,
             input.image,
         )?;
@@ -187,32 +205,48 @@ impl Perception for AdaptivePerception {
 
     /// `frames detected: <trigger>` per controller trigger (the frame's first
     /// detection; a second one on the same image counts under its variant only),
-    /// `confirmations`, and `runs of <variant>` per bundle variant (every detection,
-    /// second ones and confirmations included).
+    /// `frames tracked`, the compute time of both kinds of frame (`µs on tracked
+    /// frames`, `µs on detection frames`, confirmations not included), `confirmations`,
+    /// and `runs of <variant>` per bundle variant (every detection, second ones and
+    /// confirmations included).
     fn counts(&self) -> Vec<(String, u64)> {
         let triggers = Trigger::ALL
             .iter()
             .zip(self.detections_per_trigger)
             .map(|(t, n)| (format!("frames detected: {t:?}"), n));
-        let variants = self
-            .bundle
-            .variants()
-            .zip(&self.detections_per_variant)
-            .map(|((_, v), &n)| (format!("runs of {}", v.name), n));
+        let variants =
+            self.bundle
+                .variants()
+                .zip(&self.runs_per_variant)
+                .flat_map(|((_, v), r)| {
+                    [
+                        (format!("runs of {}", v.name), r.runs),
+                        (format!("µs in {}", v.name), r.us),
+                    ]
+                });
         triggers
-            .chain(std::iter::once((
-                "confirmations".to_string(),
-                self.confirmations,
-            )))
+            .chain([
+                ("frames tracked".to_string(), self.tracked_frames),
+                ("µs on tracked frames".to_string(), self.tracked_us),
+                ("µs on detection frames".to_string(), self.detected_us),
+                ("confirmations".to_string(), self.confirmations),
+            ])
             .chain(variants)
             .collect()
     }
 }
 
-/// Run the bundle's variant `variant` on `frame`, counting it.
+/// How often one variant ran, and for how long.
+#[derive(Clone, Copy, Debug, Default)]
+struct VariantRuns {
+    runs: u64,
+    us: u64,
+}
+
+/// Run the bundle's variant `variant` on `frame`, counting it and its time.
 fn run_variant(
     detectors: &mut [OrtDetector],
-    counts: &mut [u64],
+    counts: &mut [VariantRuns],
     variant: frugal_runtime::VariantId,
     frame: frugal_runtime::FrameRef<'_>,
 ) -> Result<Vec<frugal_runtime::Detection>, PerceptionError> {
@@ -220,8 +254,12 @@ fn run_variant(
     let det = detectors
         .get_mut(v)
         .ok_or("the bundle names a variant it has no detector for")?;
-    if let Some(n) = counts.get_mut(v) {
-        *n += 1;
+    let started = Instant::now();
+    let found = det.detect(frame)?;
+    if let Some(c) = counts.get_mut(v) {
+        c.runs += 1;
+        let us = u64::try_from(started.elapsed().as_micros()).unwrap_or(u64::MAX);
+        c.us = c.us.saturating_add(us);
     }
-    Ok(det.detect(frame)?)
+    Ok(found)
 }
