@@ -128,6 +128,60 @@ impl ReplayLog {
         self.videos.iter().filter(move |v| v.split == split)
     }
 
+    /// Add the training videos of `other` (another log of the same variants, in the
+    /// same order, e.g. replayed on recorded flight footage) to this log's training
+    /// videos, with fresh ids. This log's families and buckets stay: the scores are the
+    /// variants' own, so this log's (calibrated) edges apply to `other`'s detections.
+    /// `other_path` names `other` in errors. Returns how many videos were added.
+    ///
+    /// The added videos' frames live in `other`'s dataset: train on the result, but
+    /// evaluate on this log alone.
+    pub fn absorb_training(&mut self, other: ReplayLog, other_path: &Path) -> Result<usize> {
+        let names = |l: &ReplayLog| {
+            l.variants
+                .iter()
+                .map(|v| v.name.clone())
+                .collect::<Vec<_>>()
+        };
+        if names(self) != names(&other) {
+            return Err(PolicyError::invalid(
+                other_path,
+                "variants",
+                format!(
+                    "[{}] differ from the main log's [{}]",
+                    names(&other).join(", "),
+                    names(self).join(", ")
+                ),
+            ));
+        }
+        if other.classes != self.classes {
+            return Err(PolicyError::invalid(
+                other_path,
+                "classes",
+                format!(
+                    "{} classes, the main log has {}",
+                    other.classes, self.classes
+                ),
+            ));
+        }
+        let mut next = self.videos.iter().map(|v| v.id + 1).max().unwrap_or(0);
+        let mut added = 0;
+        for mut video in other.videos.into_iter().filter(|v| v.split == Split::Train) {
+            video.id = next;
+            next += 1;
+            self.videos.push(video);
+            added += 1;
+        }
+        if added == 0 {
+            return Err(PolicyError::invalid(
+                other_path,
+                "videos",
+                "no training videos (replay it with --train-split set to its split)",
+            ));
+        }
+        Ok(added)
+    }
+
     /// Save as JSON through a temporary file and a rename.
     pub fn save(&self, path: &Path) -> Result<()> {
         frugal_data::dataset::write_json_atomic(path, self).map_err(PolicyError::from)

@@ -90,6 +90,7 @@ pub mod adaptive;
 pub mod flight;
 pub mod maze;
 pub mod perception;
+pub mod record;
 pub mod render;
 pub mod report;
 pub mod texture;
@@ -103,4 +104,5 @@ pub use perception::{
     DetectorPerception, DeviceProfile, FrameInput, GroundTruthPerception, Percept, Perception,
     PerceptionError,
 };
+pub use record::FootageRecorder;
 pub use render::{CameraSpec, FrameTruth, PedestrianTruth, Pose, Renderer, SignTruth};

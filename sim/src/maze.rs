@@ -352,15 +352,27 @@ pub const BUILTIN_MAZES: [(&str, &str); 3] = [
     ("hard", include_str!("../mazes/hard.maze")),
 ];
 
+/// The shipped training mazes (`sim/mazes/train/`): flown only to record footage the
+/// policy learns from (`frugal fly --record`), never in an evaluation.
+pub const TRAINING_MAZES: [(&str, &str); 3] = [
+    ("train-a", include_str!("../mazes/train/train-a.maze")),
+    ("train-b", include_str!("../mazes/train/train-b.maze")),
+    ("train-c", include_str!("../mazes/train/train-c.maze")),
+];
+
 impl Maze {
-    /// A shipped maze by name (`easy`, `medium`, `hard`).
+    /// A shipped maze by name: an evaluation maze of [`BUILTIN_MAZES`] (`easy`,
+    /// `medium`, `hard`) or a training maze of [`TRAINING_MAZES`] (`train-a` …).
     pub fn builtin(name: &str) -> Option<Maze> {
-        let (n, text) = BUILTIN_MAZES.iter().find(|(n, _)| *n == name)?;
-        Maze::parse(text, Path::new(&format!("sim/mazes/{n}.maze"))).ok()
+        if let Some((n, text)) = BUILTIN_MAZES.iter().find(|(n, _)| *n == name) {
+            return Maze::parse(text, Path::new(&format!("sim/mazes/{n}.maze"))).ok();
+        }
+        let (n, text) = TRAINING_MAZES.iter().find(|(n, _)| *n == name)?;
+        Maze::parse(text, Path::new(&format!("sim/mazes/train/{n}.maze"))).ok()
     }
 
-    /// A maze file, or a shipped maze by name when `arg` is `easy`, `medium` or `hard`
-    /// and no file of that name exists.
+    /// A maze file, or a shipped maze by name (see [`Maze::builtin`]) when no file of
+    /// that name exists.
     pub fn resolve(arg: &Path) -> Result<Maze, MazeError> {
         if !arg.exists()
             && let Some(m) = arg.to_str().and_then(Maze::builtin)
@@ -815,7 +827,7 @@ end
 
     #[test]
     fn the_shipped_mazes_are_built_in_and_resolve_by_name() {
-        for (name, _) in BUILTIN_MAZES {
+        for (name, _) in BUILTIN_MAZES.iter().chain(&TRAINING_MAZES) {
             let m = Maze::builtin(name).unwrap_or_else(|| panic!("{name} parses"));
             assert!(m.goal_connected(), "{name}");
             let r = Maze::resolve(Path::new(name)).unwrap();

@@ -100,6 +100,13 @@ impl Default for GroundTruthPerception {
     }
 }
 
+impl GroundTruthPerception {
+    /// Whether this perception reports `sign`: tall and visible enough.
+    pub fn reports(&self, sign: &crate::render::SignTruth) -> bool {
+        sign.bbox.height() >= self.min_height_px && sign.visible_fraction >= self.min_visible
+    }
+}
+
 impl Perception for GroundTruthPerception {
     fn name(&self) -> String {
         "ground-truth".to_owned()
@@ -110,9 +117,7 @@ impl Perception for GroundTruthPerception {
             .truth
             .signs
             .iter()
-            .filter(|s| {
-                s.bbox.height() >= self.min_height_px && s.visible_fraction >= self.min_visible
-            })
+            .filter(|s| self.reports(s))
             .map(|s| Detection {
                 bbox: s.bbox,
                 score: 1.0,

@@ -286,15 +286,18 @@ fn fast_config() -> FlightConfig {
 
 #[test]
 fn ground_truth_flights_complete_every_shipped_maze() {
+    // the three evaluation mazes and the three training mazes of `sim/mazes/train`
     let mut names = Vec::new();
-    for entry in std::fs::read_dir(maze_dir()).unwrap() {
-        let path = entry.unwrap().path();
-        if path.extension().is_some_and(|e| e == "maze") {
-            names.push(path);
+    for dir in [maze_dir(), maze_dir().join("train")] {
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "maze") {
+                names.push(path);
+            }
         }
     }
     names.sort();
-    assert_eq!(names.len(), 3, "{names:?}");
+    assert_eq!(names.len(), 6, "{names:?}");
     for path in names {
         let maze = Maze::load(&path).unwrap();
         assert!(maze.goal_connected());
@@ -938,4 +941,115 @@ fn an_arrow_read_short_from_afar_gives_way_to_its_closer_readings() {
         assert!(short > 50, "{name}: {short} short readings");
         assert_eq!(r.outcome, Outcome::Success, "{name}: {:?}", r.events);
     }
+}
+
+#[test]
+fn recorded_footage_is_a_dataset_of_the_processed_frames_and_their_signs() {
+    let maze = Maze::builtin("train-b").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("footage");
+    let every = 7;
+    let mut rec = frugal_sim::FootageRecorder::create(&out, every).unwrap();
+    let gt = GroundTruthPerception::default();
+    // what the recorder should keep, seen through the same observer
+    let mut expected: Vec<(Vec<u8>, Vec<(u16, BBox)>)> = Vec::new();
+    let mut frames = 0;
+    for seed in [1, 2] {
+        rec.begin_flight(&maze, seed);
+        let mut observe = |v: &frugal_sim::FrameView<'_>| {
+            frames += 1;
+            rec.observe(v).unwrap();
+            if v.index % every == 0 {
+                let signs = v
+                    .truth
+                    .signs
+                    .iter()
+                    .filter(|s| gt.reports(s))
+                    .map(|s| (s.class, s.bbox))
+                    .collect();
+                expected.push((v.image.rgb.to_vec(), signs));
+            }
+        };
+        let r = frugal_sim::fly(
+            &maze,
+            &fast_config(),
+            &mut GroundTruthPerception::default(),
+            seed,
+            Some(&mut observe),
+        )
+        .unwrap();
+        assert_eq!(r.outcome, Outcome::Success);
+    }
+    assert!(!out.exists(), "nothing is in place before finish");
+    let n = rec.frames();
+    assert!(
+        n > 50 && n == expected.len() && n < frames / 5,
+        "{n} of {frames}"
+    );
+    let ds = rec
+        .finish(frugal_data::Source::Flight {
+            mazes: vec!["train-b".into()],
+            seeds: vec![1, 2],
+            every,
+            perception: "ground-truth".into(),
+        })
+        .unwrap();
+    let loaded = frugal_data::Dataset::load(&out).unwrap();
+    assert_eq!(loaded.frames.len(), n);
+    assert_eq!(loaded.videos.len(), 2);
+    assert!(
+        loaded
+            .videos
+            .iter()
+            .all(|v| v.split == frugal_data::Split::Val && v.light == frugal_data::Light::Low)
+    );
+    assert_eq!(ds.frames.len(), n);
+    let mut signs = 0;
+    for (f, (rgb, truth)) in loaded.frames.iter().zip(&expected) {
+        assert_eq!(loaded.load_rgb(f).unwrap().as_raw(), rgb, "frame {}", f.id);
+        // boxes round-trip through COCO's (x, y, w, h)
+        assert_eq!(f.objects.len(), truth.len(), "frame {}", f.id);
+        for (o, (class, b)) in f.objects.iter().zip(truth) {
+            assert_eq!(o.class, *class, "frame {}", f.id);
+            assert!(
+                o.bbox.iou(b) > 0.9999,
+                "frame {}: {:?} vs {b:?}",
+                f.id,
+                o.bbox
+            );
+        }
+        signs += truth.len();
+    }
+    assert!(signs > n / 2, "{signs} signs in {n} frames");
+    let manifest = frugal_data::dataset::read_manifest(&out).unwrap();
+    assert!(matches!(
+        manifest.source,
+        frugal_data::Source::Flight { every: 7, .. }
+    ));
+}
+
+#[test]
+fn an_unfinished_recording_leaves_the_old_folder_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("footage");
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("keep.txt"), b"old").unwrap();
+    let maze = Maze::builtin("train-a").unwrap();
+    let mut rec = frugal_sim::FootageRecorder::create(&out, 1).unwrap();
+    rec.begin_flight(&maze, 1);
+    let mut observe = |v: &frugal_sim::FrameView<'_>| rec.observe(v).unwrap();
+    let mut cfg = fast_config();
+    cfg.nav.time_limit_s = 2.0;
+    frugal_sim::fly(
+        &maze,
+        &cfg,
+        &mut GroundTruthPerception::default(),
+        1,
+        Some(&mut observe),
+    )
+    .unwrap();
+    drop(rec);
+    assert_eq!(std::fs::read(out.join("keep.txt")).unwrap(), b"old");
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert_eq!(left.len(), 1, "the partial folder is removed");
 }

@@ -170,6 +170,18 @@ pub enum Source {
         /// The file or folder it was imported from, as given.
         from: String,
     },
+    /// Recorded from simulated maze flights (`frugal fly --record`): one video per
+    /// flight, the renderer's exact boxes as annotations.
+    Flight {
+        /// The maze files flown, as given.
+        mazes: Vec<String>,
+        /// The flights' seeds.
+        seeds: Vec<u64>,
+        /// One frame kept every this many processed frames.
+        every: u64,
+        /// The perception that flew (it sets which frames were processed).
+        perception: String,
+    },
 }
 
 /// Frame and object counts of one split.

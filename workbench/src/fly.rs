@@ -3,10 +3,11 @@
 //! collisions), JSON / CSV, top views and camera frames.
 use anyhow::Context;
 use clap::{Args, ValueEnum};
+use frugal_data::Source;
 use frugal_sim::report::{self, GifRecorder, Summary};
 use frugal_sim::{
-    CameraSpec, DeviceProfile, FlightConfig, FlightResult, FrameView, GroundTruthPerception, Maze,
-    Perception,
+    CameraSpec, DeviceProfile, FlightConfig, FlightResult, FootageRecorder, FrameView,
+    GroundTruthPerception, Maze, Perception,
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
@@ -71,6 +72,16 @@ pub struct FlyArgs {
     /// One GIF frame every N processed frames (shown 100 ms each).
     #[arg(long, default_value_t = 60)]
     pub gif_every: u64,
+    /// Record every flight's processed frames, with the renderer's sign boxes, as a
+    /// frugal-data dataset in this folder (one `val` video per flight), for the policy
+    /// to learn from (`frugal policy record --data DIR --splits val --train-split
+    /// val`). Fly training mazes (`train-a`, `train-b`, `train-c`) for this, never the
+    /// evaluation ones.
+    #[arg(long)]
+    pub record: Option<PathBuf>,
+    /// Keep one processed frame in this many when recording.
+    #[arg(long, default_value_t = 3)]
+    pub record_every: u64,
     /// Hide progress bars.
     #[arg(long)]
     pub quiet: bool,
@@ -169,10 +180,18 @@ pub fn run(args: FlyArgs) -> anyhow::Result<()> {
         .iter()
         .map(|p| Maze::resolve(p))
         .collect::<Result<Vec<_>, _>>()?;
+    anyhow::ensure!(args.record_every >= 1, "--record-every must be at least 1");
+    let mut recorder = match &args.record {
+        Some(dir) => Some(
+            FootageRecorder::create(dir, args.record_every)
+                .with_context(|| format!("cannot record into {}", dir.display()))?,
+        ),
+        None => None,
+    };
     let mut summaries: Vec<Summary> = Vec::new();
     for maze in &mazes {
         let dir = args.out.join(&maze.name);
-        let results = fly_maze(maze, &config, &args, &dir)?;
+        let results = fly_maze(maze, &config, &args, &dir, recorder.as_mut())?;
         let summary = report::summarize(&results);
         report::write_json(&dir.join("flights.json"), &results)?;
         report::write_flights_csv(&dir.join("flights.csv"), &results)?;
@@ -187,6 +206,19 @@ pub fn run(args: FlyArgs) -> anyhow::Result<()> {
     }
     report::write_json(&args.out.join("summary.json"), &summaries)?;
     print!("{}", report::table(&summaries));
+    if let (Some(rec), Some(dir)) = (recorder, &args.record) {
+        let frames = rec.frames();
+        let perception = summaries
+            .first()
+            .map_or_else(String::new, |s| s.perception.clone());
+        rec.finish(Source::Flight {
+            mazes: args.maze.iter().map(|m| m.display().to_string()).collect(),
+            seeds: (args.seed..args.seed + args.seeds).collect(),
+            every: args.record_every,
+            perception,
+        })?;
+        println!("recorded {frames} frames into {}", dir.display());
+    }
     println!("results in {}", args.out.display());
     Ok(())
 }
@@ -196,6 +228,7 @@ fn fly_maze(
     config: &FlightConfig,
     args: &FlyArgs,
     dir: &Path,
+    mut recorder: Option<&mut FootageRecorder>,
 ) -> anyhow::Result<Vec<FlightResult>> {
     let bar = if args.quiet {
         ProgressBar::hidden()
@@ -216,31 +249,43 @@ fn fly_maze(
         } else {
             None
         };
-        let mut failure: Option<report::ReportError> = None;
+        let mut failure: Option<anyhow::Error> = None;
         let frames_dir = dir.join("frames");
+        if let Some(rec) = recorder.as_deref_mut() {
+            rec.begin_flight(maze, seed);
+        }
         let mut observe = |v: &FrameView<'_>| {
             if v.index.is_multiple_of(100) {
                 bar.set_message(format!("seed {seed}: t = {:.0} s", v.time_s));
             }
-            if failure.is_some() || !first {
+            if failure.is_some() {
+                return;
+            }
+            if let Some(rec) = recorder.as_deref_mut()
+                && let Err(e) = rec.observe(v)
+            {
+                failure = Some(e.into());
+                return;
+            }
+            if !first {
                 return;
             }
             if args.frames_every > 0 && v.index.is_multiple_of(args.frames_every) {
                 let path = frames_dir.join(format!("frame_{:06}.png", v.index));
                 if let Err(e) = report::save_frame_png(&path, v) {
-                    failure = Some(e);
+                    failure = Some(e.into());
                 }
             }
             if let Some(g) = gif.as_mut()
                 && v.index.is_multiple_of(args.gif_every.max(1))
                 && let Err(e) = g.push(v)
             {
-                failure = Some(e);
+                failure = Some(e.into());
             }
         };
         let r = frugal_sim::fly(maze, config, p.as_mut(), seed, Some(&mut observe))?;
         if let Some(e) = failure {
-            return Err(e.into());
+            return Err(e);
         }
         if let Some(g) = gif {
             g.finish()?;

@@ -108,6 +108,11 @@ struct TrainArgs {
     /// The replay log.
     #[arg(long)]
     log: PathBuf,
+    /// Another replay log whose training videos the policy also learns from, e.g.
+    /// replayed on recorded flight footage (`frugal fly --record`); same variants in
+    /// the same order. The main log's buckets apply to its scores. Repeatable.
+    #[arg(long = "extra-log")]
+    extra_logs: Vec<PathBuf>,
     /// Output folder (policy.json, sweep.json/csv/png/svg).
     #[arg(long)]
     out: PathBuf,
@@ -343,7 +348,11 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
             Ok(())
         }
         PolicyCommand::Train(a) => {
-            let log = ReplayLog::load(&a.log)?;
+            let mut log = ReplayLog::load(&a.log)?;
+            for extra in &a.extra_logs {
+                let added = log.absorb_training(ReplayLog::load(extra)?, extra)?;
+                println!("+ {added} training videos from {}", extra.display());
+            }
             let mut cfg = match &a.config {
                 Some(p) => PolicyConfig::read(p)?,
                 None => PolicyConfig::default(),

@@ -100,6 +100,48 @@ fn transition_counts_of_a_hand_made_log() {
 }
 
 #[test]
+fn an_extra_logs_training_videos_add_to_the_transitions_under_the_main_logs_buckets() {
+    use Bucket::*;
+    let mut main = hand_log();
+    let before = Transitions::count(&main, 0.5, |v| v.split == Split::Train);
+    // the same variants, replayed elsewhere, with their own (ignored) buckets; one of
+    // its videos is held out and must not be taken
+    let mut extra = hand_log();
+    extra.families[0].buckets.c_opt = 0.99;
+    let mut held_out = extra.videos[0].clone();
+    held_out.split = Split::Test;
+    extra.videos.push(held_out);
+    let path = std::path::Path::new("extra.json");
+    assert_eq!(main.absorb_training(extra.clone(), path).unwrap(), 1);
+    assert_eq!(
+        main.videos.iter().map(|v| v.id).collect::<Vec<_>>(),
+        [0, 1],
+        "fresh ids"
+    );
+    assert_eq!(
+        main.families[0].buckets, CNN_BUCKETS,
+        "the main log's buckets stay"
+    );
+    let after = Transitions::count(&main, 0.5, |v| v.split == Split::Train);
+    let (ge_a, opt_b) = (state(GoodEnough, 0, 2), state(Optimal, 1, 2));
+    for (s, a) in [(ge_a, 0), (ge_a, 1), (opt_b, 0), (opt_b, 1)] {
+        assert_eq!(after.samples(s, a), 2 * before.samples(s, a), "({s}, {a})");
+    }
+    // another variant set, or no training videos, is refused naming the file
+    let mut other = extra.clone();
+    other.variants[1].name = "c".into();
+    let e = main.absorb_training(other, path).unwrap_err().to_string();
+    assert!(e.contains("extra.json") && e.contains("variants"), "{e}");
+    let mut none = extra;
+    none.videos.retain(|v| v.split == Split::Test);
+    let e = main.absorb_training(none, path).unwrap_err().to_string();
+    assert!(
+        e.contains("extra.json") && e.contains("no training videos"),
+        "{e}"
+    );
+}
+
+#[test]
 fn smoothing_spreads_mass_over_the_actions_buckets() {
     let log = hand_log();
     let t = Transitions::count(&log, 0.5, |_| true);

@@ -1,0 +1,122 @@
+//! Flight footage as a dataset: the frames a flight processed, with the renderer's
+//! exact sign boxes, written in the frugal-data format (`frugal fly --record DIR`).
+//!
+//! The replay (`frugal policy record`) runs every variant on these frames like on any
+//! dataset, so the policy can learn from footage that looks like a flight — long
+//! stretches with no sign in reach, signs growing from far away — on training mazes
+//! that no evaluation flies. Each flight is one video of the `val` split (the split
+//! the policy learns from); its illumination is the maze's, its clutter `low` (plain
+//! warehouse walls). A sign is annotated when the ground-truth perception would report
+//! it ([`GroundTruthPerception::reports`]): at least 8 px tall and half visible.
+use crate::flight::FrameView;
+use crate::maze::{Lighting, Maze};
+use crate::perception::GroundTruthPerception;
+use frugal_data::dataset::PartialDir;
+use frugal_data::generate::{encode_png, frame_file};
+use frugal_data::{
+    Clutter, DataError, Dataset, FrameRecord, Light, Object, Source, Split, VideoMeta, classes,
+};
+use std::path::{Path, PathBuf};
+
+/// Writes the frames of one or more flights into a dataset folder, swapped into place
+/// only by [`FootageRecorder::finish`] (an interrupted recording leaves the old folder).
+pub struct FootageRecorder {
+    out: PathBuf,
+    partial: PartialDir,
+    every: u64,
+    filter: GroundTruthPerception,
+    videos: Vec<VideoMeta>,
+    frames: Vec<FrameRecord>,
+}
+
+impl FootageRecorder {
+    /// Start recording into `out`, keeping one processed frame in `every` (at least 1).
+    pub fn create(out: &Path, every: u64) -> Result<Self, DataError> {
+        Ok(Self {
+            out: out.to_owned(),
+            partial: PartialDir::new(out)?,
+            every: every.max(1),
+            filter: GroundTruthPerception::default(),
+            videos: Vec::new(),
+            frames: Vec::new(),
+        })
+    }
+
+    /// Start the video of one flight of `maze` with `seed`.
+    pub fn begin_flight(&mut self, maze: &Maze, seed: u64) {
+        let id = self.videos.len() as u32;
+        self.videos.push(VideoMeta {
+            id,
+            seed,
+            clutter: Clutter::Low,
+            light: match maze.lighting {
+                Lighting::Normal => Light::Normal,
+                Lighting::Low => Light::Low,
+            },
+            split: Split::Val,
+            frames: 0,
+        });
+    }
+
+    /// Keep `view` if its index is a multiple of `every`: its PNG and its annotations.
+    /// Frames before the first [`FootageRecorder::begin_flight`] are ignored.
+    pub fn observe(&mut self, view: &FrameView<'_>) -> Result<(), DataError> {
+        if !view.index.is_multiple_of(self.every) {
+            return Ok(());
+        }
+        let Some(video) = self.videos.last_mut() else {
+            return Ok(());
+        };
+        let (w, h) = (view.image.width, view.image.height);
+        let file = frame_file(video.id, video.frames);
+        let path = self.partial.path().join(&file);
+        let img = image::RgbImage::from_raw(w, h, view.image.rgb.to_vec())
+            .ok_or_else(|| DataError::invalid(&path, "frame", format!("not {w}x{h} RGB pixels")))?;
+        if let Some(dir) = path.parent() {
+            std::fs::create_dir_all(dir).map_err(|e| DataError::io(dir, e))?;
+        }
+        std::fs::write(&path, encode_png(&img, &path)?).map_err(|e| DataError::io(&path, e))?;
+        let objects = view
+            .truth
+            .signs
+            .iter()
+            .filter(|s| self.filter.reports(s))
+            .map(|s| Object {
+                class: s.class,
+                bbox: s.bbox.clip(w as f32, h as f32),
+            })
+            .filter(|o| o.bbox.is_valid())
+            .collect();
+        self.frames.push(FrameRecord {
+            id: self.frames.len() as u64,
+            file,
+            width: w,
+            height: h,
+            video: video.id,
+            index: video.frames,
+            split: Split::Val,
+            objects,
+        });
+        video.frames += 1;
+        Ok(())
+    }
+
+    /// Frames kept so far.
+    pub fn frames(&self) -> usize {
+        self.frames.len()
+    }
+
+    /// Write the annotations and the manifest and move the folder into place.
+    pub fn finish(self, source: Source) -> Result<Dataset, DataError> {
+        let mut dataset = Dataset {
+            root: self.partial.path().to_owned(),
+            classes: classes(),
+            videos: self.videos,
+            frames: self.frames,
+        };
+        dataset.write_metadata(self.partial.path(), source)?;
+        self.partial.commit()?;
+        dataset.root = self.out;
+        Ok(dataset)
+    }
+}
