@@ -323,9 +323,32 @@ fn frame_counts(
     v: usize,
     iou: f32,
 ) -> (usize, usize, usize) {
+    frame_counts_from(log, video, f, v, iou, 0.0)
+}
+
+/// [`frame_counts`] where signs whose box is shorter than `min_px` are don't-care:
+/// missing one is no miss, and a detection that covers one (IoU ≥ `iou`, any class)
+/// and no sign that counts is no false alarm. A detection of nothing stays a false
+/// alarm, whatever its size.
+fn frame_counts_from(
+    log: &ReplayLog,
+    video: &VideoLog,
+    f: usize,
+    v: usize,
+    iou: f32,
+    min_px: f32,
+) -> (usize, usize, usize) {
+    let (counted, ignored): (Vec<Truth>, Vec<Truth>) = truth(video, f)
+        .into_iter()
+        .partition(|t| !(t.bbox.height() < min_px));
+    let mut detections = reported(log, video, f, v);
+    if !ignored.is_empty() {
+        let covers = |d: &Detection, ts: &[Truth]| ts.iter().any(|t| d.bbox.iou(&t.bbox) >= iou);
+        detections.retain(|d| covers(d, &counted) || !covers(d, &ignored));
+    }
     let im = ImageResult {
-        detections: reported(log, video, f, v),
-        truth: truth(video, f),
+        detections,
+        truth: counted,
     };
     image_counts(&im, iou, f32::NEG_INFINITY)
 }
@@ -340,7 +363,20 @@ pub fn correct(log: &ReplayLog, video: &VideoLog, f: usize, v: usize, iou: f32) 
 /// reports exactly the signs there are (nothing, on a frame without signs), 0 when it
 /// finds none of them or only false alarms.
 pub fn frame_f1(log: &ReplayLog, video: &VideoLog, f: usize, v: usize, iou: f32) -> f64 {
-    let (tp, fp, fneg) = frame_counts(log, video, f, v, iou);
+    frame_f1_from(log, video, f, v, iou, 0.0)
+}
+
+/// [`frame_f1`] over the signs whose box is at least `min_px` tall; smaller ones are
+/// don't-care (see [`PolicyConfig::outcome_min_px`](crate::PolicyConfig)).
+pub fn frame_f1_from(
+    log: &ReplayLog,
+    video: &VideoLog,
+    f: usize,
+    v: usize,
+    iou: f32,
+    min_px: f32,
+) -> f64 {
+    let (tp, fp, fneg) = frame_counts_from(log, video, f, v, iou, min_px);
     if tp + fp + fneg == 0 {
         1.0
     } else {

@@ -109,6 +109,12 @@ pub struct PolicyConfig {
     pub reward: Reward,
     /// IoU at which a detection counts as right for [`Reward::Outcome`].
     pub outcome_iou: f32,
+    /// Signs whose box is shorter than this (pixels) are don't-care for
+    /// [`Reward::Outcome`]: missing one costs nothing, finding one is no false alarm.
+    /// 0 (the default) counts every sign. A drone that acts on signs only within some
+    /// distance sets the height of a sign at that distance, so that the policy does not
+    /// pay for reading signs it has no use for yet.
+    pub outcome_min_px: f32,
     /// `α`: how strongly cost discounts the reward.
     pub alpha: f64,
     /// `γ`: the discount factor, in `[0, 1)`.
@@ -131,6 +137,7 @@ impl Default for PolicyConfig {
         Self {
             reward: Reward::Outcome,
             outcome_iou: 0.5,
+            outcome_min_px: 0.0,
             // outcome rewards live in [0, 1]: a variant 4× the cost must be right about
             // 7 % more often to be chosen (4^0.05 ≈ 1.07)
             alpha: 0.05,
@@ -165,6 +172,12 @@ impl PolicyConfig {
             return bad(
                 "outcome_iou",
                 format!("{} is outside (0, 1]", self.outcome_iou),
+            );
+        }
+        if !(self.outcome_min_px >= 0.0 && self.outcome_min_px.is_finite()) {
+            return bad(
+                "outcome_min_px",
+                format!("{} must be finite and >= 0", self.outcome_min_px),
             );
         }
         if !(self.tolerance > 0.0 && self.tolerance.is_finite()) {
@@ -218,6 +231,17 @@ impl Transitions {
         iou: f32,
         keep: impl Fn(&crate::replay::VideoLog) -> bool,
     ) -> Self {
+        Self::count_from(log, iou, 0.0, keep)
+    }
+
+    /// [`Transitions::count`] with signs shorter than `min_px` don't-care in the F1
+    /// ([`PolicyConfig::outcome_min_px`]).
+    pub fn count_from(
+        log: &ReplayLog,
+        iou: f32,
+        min_px: f32,
+        keep: impl Fn(&crate::replay::VideoLog) -> bool,
+    ) -> Self {
         let v_n = log.variants.len();
         let s_n = BUCKET_COUNT * v_n;
         let mut counts = vec![0u64; v_n * s_n * BUCKET_COUNT];
@@ -227,7 +251,7 @@ impl Transitions {
             for t in 1..video.frames.len() {
                 let (now, next) = (&video.frames[t - 1], &video.frames[t]);
                 let next_f1: Vec<f64> = (0..v_n)
-                    .map(|a| crate::eval::frame_f1(log, video, t, a, iou))
+                    .map(|a| crate::eval::frame_f1_from(log, video, t, a, iou, min_px))
                     .collect();
                 for v in 0..v_n {
                     let s = state(buckets[v].bucket(now.best_score(v)), v, v_n);
@@ -260,7 +284,9 @@ impl Transitions {
 
     /// The transitions of `log`'s training videos, outcomes judged at `cfg`'s IoU.
     pub fn training(log: &ReplayLog, cfg: &PolicyConfig) -> Self {
-        Self::count(log, cfg.outcome_iou, |v| v.split == Split::Train)
+        Self::count_from(log, cfg.outcome_iou, cfg.outcome_min_px, |v| {
+            v.split == Split::Train
+        })
     }
 
     /// Samples behind row `(s, a)`.

@@ -61,6 +61,25 @@ pub struct ReplaySettings {
     pub calibrate: bool,
     /// Frames that must back a calibrated bucket edge.
     pub calibrate_min_samples: usize,
+    /// Flight footage the policy also learns from (none by default).
+    #[serde(default)]
+    pub footage: Option<FootageSettings>,
+}
+
+/// Flight footage for the policy (`frugal fly --record`, then `frugal policy record`
+/// on it): ground-truth flights through training mazes, whose frames every variant of
+/// the front replays; `frugal policy train --extra-log` adds them to the policy's
+/// training videos.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FootageSettings {
+    /// Training maze names (`train-a`, `train-b`, `train-c`) or maze files; never an
+    /// evaluation maze of `[flights]`.
+    pub mazes: Vec<String>,
+    /// Flights per maze.
+    pub seeds: u64,
+    /// Keep one processed frame in this many.
+    pub every: u64,
 }
 
 /// `frugal fly` settings: static (the most accurate variant) against adaptive (the
@@ -220,6 +239,7 @@ impl RunConfig {
             train_split: "val".into(),
             calibrate: true,
             calibrate_min_samples: 20,
+            footage: None,
         };
         let default_flights = FlightSettings {
             mazes: vec!["easy".into(), "medium".into(), "hard".into()],
@@ -387,6 +407,37 @@ impl RunConfig {
                 "replay.threads / replay.max_detections",
                 "must be at least 1".into(),
             ));
+        }
+        if let Some(f) = &self.replay.footage {
+            if f.mazes.is_empty() || f.seeds == 0 || f.every == 0 {
+                return Err(bad(
+                    "replay.footage",
+                    "needs at least one maze, one seed, and every >= 1".into(),
+                ));
+            }
+            let flown: Vec<String> = self
+                .flights
+                .mazes
+                .iter()
+                .filter_map(|m| frugal_sim::Maze::resolve(Path::new(m)).ok())
+                .map(|m| m.name)
+                .collect();
+            for m in &f.mazes {
+                let maze = frugal_sim::Maze::resolve(Path::new(m)).map_err(|e| {
+                    bad(
+                        "replay.footage.mazes",
+                        format!("{e} (training mazes: train-a, train-b, train-c)"),
+                    )
+                })?;
+                if flown.contains(&maze.name) {
+                    return Err(bad(
+                        "replay.footage.mazes",
+                        format!(
+                            "`{m}` is flown in [flights]: the policy must not learn from an evaluation maze"
+                        ),
+                    ));
+                }
+            }
         }
         let e = &self.evaluation;
         if !(0.0..=1.0).contains(&e.iou_threshold) || !(0.0..=1.0).contains(&e.eval_iou) {
@@ -586,7 +637,8 @@ mod tests {
     }
 
     #[test]
-    fn the_shipped_flight_config_shares_the_default_data_and_detector_and_adds_cheap_variants() {
+    fn the_shipped_flight_config_shares_the_default_data_and_detector_and_adds_cheap_variants_and_footage()
+     {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/flight.toml");
         let cfg = RunConfig::load(Some(&path), Profile::Default).unwrap();
         cfg.check(&path).unwrap();
@@ -596,7 +648,20 @@ mod tests {
         assert_eq!(cfg.data, default.data);
         assert_eq!(cfg.detector, default.detector);
         assert_eq!(cfg.evaluation, default.evaluation);
-        assert_eq!(cfg.policy, default.policy);
+        // the policy differs in what it pays for: cost (α), far signs (don't-care
+        // below 24 px), and flight footage from the training mazes only
+        assert_eq!(
+            PolicyConfig {
+                alpha: default.policy.alpha,
+                outcome_min_px: default.policy.outcome_min_px,
+                ..cfg.policy.clone()
+            },
+            default.policy
+        );
+        assert_eq!((cfg.policy.alpha, cfg.policy.outcome_min_px), (0.2, 24.0));
+        let footage = cfg.replay.footage.clone().unwrap();
+        assert_eq!(footage.mazes, ["train-a", "train-b", "train-c"]);
+        assert!(footage.mazes.iter().all(|m| !cfg.flights.mazes.contains(m)));
         let names = |g: &Grid| {
             g.variants
                 .iter()
@@ -605,7 +670,9 @@ mod tests {
         };
         let (ours, theirs) = (names(&cfg.compress), names(&default.compress));
         assert!(theirs.iter().all(|n| ours.contains(n)), "{ours:?}");
-        assert!(ours.contains(&"ch50-p20-int8".to_string()), "{ours:?}");
+        for cheap in ["ch50-p20-int8", "ch25-p20-int8"] {
+            assert!(ours.contains(&cheap.to_string()), "{ours:?}");
+        }
         let ch50 = cfg
             .compress
             .variants
@@ -613,6 +680,32 @@ mod tests {
             .find(|v| v.name == "ch50")
             .unwrap();
         assert_eq!((ch50.steps, cfg.compress.finetune.frames), (Some(1000), 0));
+    }
+
+    #[test]
+    fn footage_comes_from_training_mazes_only_and_is_off_by_default() {
+        let default = RunConfig::profile(Profile::Default).unwrap();
+        assert_eq!(default.replay.footage, None);
+        let cfg =
+            load("[replay.footage]\nmazes = [\"train-a\", \"train-c\"]\nseeds = 2\nevery = 3\n")
+                .unwrap();
+        let f = cfg.replay.footage.unwrap();
+        assert_eq!((f.mazes.len(), f.seeds, f.every), (2, 2, 3));
+        let e = load("[replay.footage]\nmazes = [\"hard\"]\nseeds = 1\nevery = 3\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("replay.footage.mazes") && e.contains("evaluation maze"),
+            "{e}"
+        );
+        let e = load("[replay.footage]\nmazes = [\"nowhere\"]\nseeds = 1\nevery = 3\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("nowhere") && e.contains("train-a"), "{e}");
+        let e = load("[replay.footage]\nmazes = [\"train-a\"]\nseeds = 1\nevery = 0\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("replay.footage"), "{e}");
     }
 
     #[test]

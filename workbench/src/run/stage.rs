@@ -1,7 +1,7 @@
 //! The stages of `frugal run`, their inputs hash, and the partial-folder / stamp /
 //! rename protocol that makes a killed run restartable.
 use super::RunArgs;
-use super::config::RunConfig;
+use super::config::{FootageSettings, RunConfig};
 use anyhow::{Context, bail};
 use frugal_data::dataset::write_atomic;
 use serde::{Deserialize, Serialize};
@@ -69,6 +69,9 @@ pub(crate) const STAGES: [StageDef; 9] = [
         what: "closed-loop maze flights, static detector against the adaptive runtime",
     },
 ];
+
+/// The replay log of the flight footage, in the replay stage's folder.
+pub(crate) const FOOTAGE_LOG: &str = "footage.json";
 
 /// Bumped when a stage's commands change in a way that changes its output.
 const PIPELINE_VERSION: u32 = 1;
@@ -457,6 +460,9 @@ impl Ctx {
                     a.extend([s("--per-combo"), r.per_combo.to_string()]);
                 }
                 let mut commands = vec![self.frugal(&self.quiet(a))?];
+                if let Some(f) = &r.footage {
+                    commands.extend(self.footage(f, out)?);
+                }
                 if r.calibrate {
                     commands.push(self.frugal(&[
                         s("policy"),
@@ -471,16 +477,22 @@ impl Ctx {
                 }
                 commands
             }
-            "policy" => vec![self.frugal(&[
-                s("policy"),
-                s("train"),
-                s("--log"),
-                arg(&self.dir("replay").join("replay.json")),
-                s("--out"),
-                arg(out),
-                s("--config"),
-                cfg(),
-            ])?],
+            "policy" => {
+                let mut a = vec![
+                    s("policy"),
+                    s("train"),
+                    s("--log"),
+                    arg(&self.dir("replay").join("replay.json")),
+                    s("--out"),
+                    arg(out),
+                    s("--config"),
+                    cfg(),
+                ];
+                if c.replay.footage.is_some() {
+                    a.extend([s("--extra-log"), arg(&self.dir("replay").join(FOOTAGE_LOG))]);
+                }
+                vec![self.frugal(&a)?]
+            }
             "evaluation" => vec![self.frugal(&[
                 s("policy"),
                 s("eval"),
@@ -518,6 +530,52 @@ impl Ctx {
             "flights" => self.flights(out)?,
             other => bail!("no stage named {other}"),
         })
+    }
+
+    /// Flight footage for the policy: ground-truth flights through the training mazes,
+    /// recorded (`<out>/footage`), and every front variant replayed on it
+    /// ([`FOOTAGE_LOG`]).
+    fn footage(&self, f: &FootageSettings, out: &Path) -> anyhow::Result<Vec<String>> {
+        let s = |v: &str| v.to_string();
+        let mut fly = vec![s("fly")];
+        for m in &f.mazes {
+            fly.extend([s("--maze"), m.clone()]);
+        }
+        fly.extend([
+            s("--seeds"),
+            f.seeds.to_string(),
+            s("--perception"),
+            s("ground-truth"),
+            s("--out"),
+            arg(&out.join("footage-flights")),
+            s("--record"),
+            arg(&out.join("footage")),
+            s("--record-every"),
+            f.every.to_string(),
+        ]);
+        let r = &self.config.replay;
+        let replay = vec![
+            s("policy"),
+            s("record"),
+            s("--data"),
+            arg(&out.join("footage")),
+            s("--variants"),
+            arg(&self.dir("pareto").join("variants.json")),
+            s("--out"),
+            arg(&out.join(FOOTAGE_LOG)),
+            s("--splits"),
+            s("val"),
+            s("--train-split"),
+            s("val"),
+            s("--threads"),
+            r.threads.to_string(),
+            s("--max-detections"),
+            r.max_detections.to_string(),
+        ];
+        Ok(vec![
+            self.frugal(&self.quiet(fly))?,
+            self.frugal(&self.quiet(replay))?,
+        ])
     }
 
     /// The static variant of the replay evaluation (the most accurate) as an ONNX folder.
