@@ -142,6 +142,62 @@ fn an_extra_logs_training_videos_add_to_the_transitions_under_the_main_logs_buck
 }
 
 #[test]
+fn signs_below_outcome_min_px_are_dont_care_in_the_outcome() {
+    use frugal_policies::eval::frame_f1_from;
+    let mut log = hand_log();
+    let (near, far) = ([100.0, 100.0, 140.0, 140.0], [300.0, 50.0, 310.0, 60.0]);
+    let at = |bbox: [f32; 4]| Det {
+        class: 0,
+        score: 0.95,
+        bbox,
+    };
+    let frame = &mut log.videos[0].frames[1];
+    // a 40 px sign near and a 10 px one far; variant a finds both plus a false alarm
+    // (10 px) where there is nothing, variant b finds the near one only
+    frame.truth = vec![
+        Det {
+            score: 1.0,
+            ..at(near)
+        },
+        Det {
+            score: 1.0,
+            ..at(far)
+        },
+    ];
+    frame.detections = vec![
+        vec![at(near), at(far), at([0.0, 0.0, 10.0, 10.0])],
+        vec![at(near)],
+    ];
+    let video = &log.videos[0];
+    let f1 = |v, min_px| frame_f1_from(&log, video, 1, v, 0.5, min_px);
+    // every sign counts: a has 2 tp + 1 fp, b has 1 tp + 1 miss
+    assert!((f1(0, 0.0) - 0.8).abs() < 1e-9, "{}", f1(0, 0.0));
+    assert!((f1(1, 0.0) - 2.0 / 3.0).abs() < 1e-9);
+    // below 24 px is don't-care: b misses nothing, a's far find is no false alarm,
+    // and its detection of nothing still is one
+    assert!((f1(1, 24.0) - 1.0).abs() < 1e-9);
+    assert!((f1(0, 24.0) - 2.0 / 3.0).abs() < 1e-9, "{}", f1(0, 24.0));
+    // and the policy config carries it into the transitions' outcome
+    let cfg = PolicyConfig {
+        outcome_min_px: 24.0,
+        ..PolicyConfig::default()
+    };
+    let t = Transitions::training(&log, &cfg);
+    let t0 = Transitions::training(&log, &PolicyConfig::default());
+    assert_eq!(t.counts, t0.counts, "the buckets do not depend on it");
+    assert!(t.f1 != t0.f1, "the outcome does");
+    let bad = PolicyConfig {
+        outcome_min_px: -1.0,
+        ..PolicyConfig::default()
+    };
+    let e = bad
+        .check(std::path::Path::new("p.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("outcome_min_px"), "{e}");
+}
+
+#[test]
 fn smoothing_spreads_mass_over_the_actions_buckets() {
     let log = hand_log();
     let t = Transitions::count(&log, 0.5, |_| true);
