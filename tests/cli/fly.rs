@@ -1,6 +1,6 @@
 //! `frugal fly`: closed-loop flights through the shipped easy maze with ground-truth
 //! perception at a small camera size, and its clear failures.
-use super::{frugal, p};
+use super::{frugal, json, p};
 use std::path::{Path, PathBuf};
 
 fn maze(name: &str) -> PathBuf {
@@ -125,4 +125,52 @@ fn fly_reports_bad_maze_lines_and_unknown_devices() {
     ])
     .expect_err("carry without the adaptive runtime");
     assert!(e.contains("--carry") && e.contains("adaptive"), "{e}");
+}
+
+#[test]
+fn fly_records_its_frames_as_a_dataset_the_replay_can_read() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let footage = tmp.path().join("footage");
+    frugal(&[
+        "fly",
+        "--maze",
+        "train-c",
+        "--seeds",
+        "1",
+        "--width",
+        "160",
+        "--height",
+        "90",
+        "--device",
+        "host",
+        "--gt-compute-ms",
+        "40",
+        "--record",
+        p(&footage),
+        "--record-every",
+        "20",
+        "--out",
+        p(&tmp.path().join("fly")),
+        "--quiet",
+    ])
+    .expect("fly --record");
+    let manifest = json(&footage.join("manifest.json"));
+    assert_eq!(manifest["source"]["kind"], "flight");
+    assert_eq!(manifest["source"]["every"], 20);
+    let videos = manifest["videos"].as_array().expect("videos");
+    assert_eq!(videos.len(), 1, "one video per flight");
+    assert_eq!(videos[0]["split"], "val");
+    let frames = videos[0]["frames"].as_u64().expect("frames");
+    let val = json(&footage.join("annotations/val.json"));
+    let images = val["images"].as_array().expect("images");
+    let signs = val["annotations"].as_array().expect("annotations");
+    assert!(frames > 20 && images.len() as u64 == frames, "{frames}");
+    // at 160×90 a sign is 8 px tall (the smallest annotated) from about 4 m
+    assert!(signs.len() > 20, "{} signs in {frames} frames", signs.len());
+    for im in images {
+        let file = footage.join(im["file_name"].as_str().expect("file"));
+        assert!(file.is_file(), "{}", file.display());
+    }
+    // the replay's own reader takes it, split by split
+    frugal(&["data", "summary", p(&footage)]).expect("summary");
 }
