@@ -166,6 +166,27 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
         json(&run.join("policy/policy.json"))["config"]["alpha"],
         2.5
     );
+
+    // flight footage from a training maze: the replay records and replays it, and the
+    // policy learns from its one video too
+    let videos = |run: &Path| {
+        json(&run.join("policy/policy.json"))["training_videos"]
+            .as_array()
+            .map_or(0, Vec::len)
+    };
+    let before = videos(&run);
+    let cfg = tmp.path().join("footage.toml");
+    std::fs::write(
+        &cfg,
+        "profile = \"tiny\"\n[policy]\nalpha = 2.5\n[replay.footage]\nmazes = [\"train-a\"]\nseeds = 1\nevery = 40\n",
+    )
+    .unwrap();
+    run_tiny(&run, Some(&cfg));
+    let log = json(&run.join("replay/footage.json"));
+    assert_eq!(log["videos"].as_array().map(Vec::len), Some(1));
+    assert_eq!(videos(&run), before + 1);
+    let commands = stamp(&run, "policy")["commands"].to_string();
+    assert!(commands.contains("--extra-log"), "{commands}");
 }
 
 #[test]
