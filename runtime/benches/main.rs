@@ -122,6 +122,16 @@ fn tracker<M: Measurement + 'static>(c: &mut Criterion<M>, suffix: &str) {
     let mut prev = Pyramid::new(&mut wa, w, h, prm.lk.levels).expect("ws");
     let mut next = Pyramid::new(&mut wb, w, h, prm.lk.levels).expect("ws");
     let gray = |f: usize| GrayImage::new(&clip.frames[f], w, h, w).expect("frame");
+    let rgb: Vec<u8> = clip.frames[1].iter().flat_map(|&g| [g, g, g]).collect();
+    let frame = frugal_runtime::FrameRef::new(w as u32, h as u32, &rgb).expect("rgb");
+    let mut gray_out = vec![0u8; w * h];
+    c.bench_function(&format!("gray/rgb_to_gray_480x270{suffix}"), |b| {
+        b.iter(|| {
+            frugal_runtime::track::rgb_to_gray(black_box(&frame), &mut gray_out)
+                .expect("gray")
+                .width()
+        })
+    });
     c.bench_function(&format!("pyramid/build_480x270_3{suffix}"), |b| {
         b.iter(|| next.build(black_box(&gray(1))).expect("build"))
     });

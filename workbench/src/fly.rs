@@ -155,6 +155,8 @@ pub fn run(args: FlyArgs) -> anyhow::Result<()> {
             "--slowdown must be positive, got {s}"
         );
         device.slowdown = s;
+        // the tables and files name the device by its label: say what it now is
+        device.name = format!("{} at slowdown {s}", device.name);
     }
     anyhow::ensure!(args.seeds >= 1, "--seeds must be at least 1");
     anyhow::ensure!(
