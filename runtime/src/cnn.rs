@@ -130,16 +130,20 @@ pub fn top_k(scores: &[f32], k: usize) -> Vec<usize> {
 /// Frame → normalised CHW floats: `(px / 255 − mean) / std` per channel.
 pub fn normalize(frame: FrameRef<'_>, mean: [f32; 3], std: [f32; 3]) -> Vec<f32> {
     let plane = frame.width as usize * frame.height as usize;
-    let mut out = std::vec![0.0f32; 3 * plane];
-    let (r, rest) = out.split_at_mut(plane);
-    let (g, b) = rest.split_at_mut(plane);
-    for (((px, r), g), b) in frame.rgb.chunks_exact(3).zip(r).zip(g).zip(b) {
-        if let [pr, pg, pb] = *px {
-            *r = (f32::from(pr) / 255.0 - mean[0]) / std[0];
-            *g = (f32::from(pg) / 255.0 - mean[1]) / std[1];
-            *b = (f32::from(pb) / 255.0 - mean[2]) / std[2];
-        }
+    let mut out = Vec::with_capacity(3 * plane);
+    // one table per channel: the same f32 arithmetic per value as per pixel, done 256
+    // times instead of once per pixel (bit-identical results); the planes are written
+    // once each, never zeroed first
+    for (c, (m, s)) in mean.into_iter().zip(std).enumerate() {
+        let table: [f32; 256] = core::array::from_fn(|v| (v as f32 / 255.0 - m) / s);
+        out.extend(frame.rgb.chunks_exact(3).take(plane).map(|px| {
+            px.get(c)
+                .and_then(|&v| table.get(usize::from(v)))
+                .copied()
+                .unwrap_or(0.0)
+        }));
     }
+    out.resize(3 * plane, 0.0);
     out
 }
 
@@ -369,6 +373,23 @@ mod tests {
                     Some(first.as_slice()),
                     all.get(..limit.min(all.len())),
                     "iou {iou} limit {limit}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn normalize_by_table_is_the_per_pixel_formula_bit_for_bit() {
+        let rgb: std::vec::Vec<u8> = (0..=255u8).flat_map(|v| [v, 255 - v, v / 3]).collect();
+        let f = FrameRef::new(256, 1, &rgb).unwrap();
+        let (mean, std) = ([0.485, 0.456, 0.406], [0.229, 0.224, 0.225]);
+        let out = normalize(f, mean, std);
+        for (i, px) in rgb.chunks_exact(3).enumerate() {
+            for (c, ((&v, m), s)) in px.iter().zip(mean).zip(std).enumerate() {
+                let want = (f32::from(v) / 255.0 - m) / s;
+                assert_eq!(
+                    out.get(c * 256 + i).map(|x| x.to_bits()),
+                    Some(want.to_bits())
                 );
             }
         }
