@@ -340,7 +340,7 @@ fn frame_counts_from(
 ) -> (usize, usize, usize) {
     let (counted, ignored): (Vec<Truth>, Vec<Truth>) = truth(video, f)
         .into_iter()
-        .partition(|t| !(t.bbox.height() < min_px));
+        .partition(|t| t.bbox.height() >= min_px || t.bbox.height().is_nan());
     let mut detections = reported(log, video, f, v);
     if !ignored.is_empty() {
         let covers = |d: &Detection, ts: &[Truth]| ts.iter().any(|t| d.bbox.iou(&t.bbox) >= iou);

@@ -164,14 +164,14 @@ impl ReplayLog {
                 ),
             ));
         }
-        let mut next = self.videos.iter().map(|v| v.id + 1).max().unwrap_or(0);
-        let mut added = 0;
-        for mut video in other.videos.into_iter().filter(|v| v.split == Split::Train) {
-            video.id = next;
-            next += 1;
+        let first = self.videos.iter().map(|v| v.id + 1).max().unwrap_or(0);
+        let before = self.videos.len();
+        let training = other.videos.into_iter().filter(|v| v.split == Split::Train);
+        for (id, mut video) in (first..).zip(training) {
+            video.id = id;
             self.videos.push(video);
-            added += 1;
         }
+        let added = self.videos.len() - before;
         if added == 0 {
             return Err(PolicyError::invalid(
                 other_path,

@@ -12,7 +12,7 @@
 //! variant, best box) and a summary: detections per variant, mean compute per frame.
 use frugal_runtime::onnx::OrtDetector;
 use frugal_runtime::pilot::Pilot;
-use frugal_runtime::track::{Pyramid, rgb_to_gray};
+use frugal_runtime::track::Pyramid;
 use frugal_runtime::{Bundle, Decision, FrameRef};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -47,7 +47,7 @@ fn main() -> Result<(), Error> {
     }
 
     let mut pilot: Pilot<'_, 4, 64> = Pilot::new(bundle);
-    let (mut prev_buf, mut cur_buf, mut gray) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut prev_buf, mut cur_buf) = (Vec::new(), Vec::new());
     let mut size = (0usize, 0usize);
     let mut per_variant = vec![0u32; bundle.variant_count()];
     let mut tracked = 0u32;
@@ -61,13 +61,12 @@ fn main() -> Result<(), Error> {
         if (w, h) != size {
             // first frame, or a new size: fresh buffers, no previous pyramid
             let need = Pyramid::required_len(w, h, 3).ok_or("frame too small")?;
-            (prev_buf, cur_buf, gray) = (vec![0; need], vec![0; need], vec![0; w * h]);
+            (prev_buf, cur_buf) = (vec![0; need], vec![0; need]);
             size = (w, h);
         }
         let frame = FrameRef::new(w as u32, h as u32, img.as_raw()).ok_or("bad frame")?;
-        let g = rgb_to_gray(&frame, &mut gray)?;
         let mut cur = Pyramid::new(&mut cur_buf, w, h, 3)?;
-        cur.build(&g)?;
+        cur.build_rgb(&frame)?;
         let prev = if t > 0 {
             Some(Pyramid::new(&mut prev_buf, w, h, 3)?)
         } else {

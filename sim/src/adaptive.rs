@@ -6,7 +6,7 @@
 use crate::perception::{DetectorPerception, FrameInput, Percept, Perception, PerceptionError};
 use frugal_runtime::onnx::OrtDetector;
 use frugal_runtime::pilot::{Carry, Pilot};
-use frugal_runtime::track::{Pyramid, rgb_to_gray};
+use frugal_runtime::track::Pyramid;
 use frugal_runtime::{Bundle, Decision, Trigger};
 use std::path::Path;
 use std::time::Instant;
@@ -41,7 +41,6 @@ pub struct AdaptivePerception {
     detectors: Vec<OrtDetector>,
     prev: Vec<u8>,
     cur: Vec<u8>,
-    gray: Vec<u8>,
     size: (usize, usize),
     have_prev: bool,
     label: String,
@@ -83,7 +82,6 @@ impl AdaptivePerception {
             detectors,
             prev: Vec::new(),
             cur: Vec::new(),
-            gray: Vec::new(),
             size: (0, 0),
             have_prev: false,
             label: format!(
@@ -132,13 +130,11 @@ impl Perception for AdaptivePerception {
             let need = Pyramid::required_len(w, h, levels).ok_or("frame too small to track")?;
             self.prev = vec![0; need];
             self.cur = vec![0; need];
-            self.gray = vec![0; w * h];
             self.size = (w, h);
             self.have_prev = false;
         }
-        let gray = rgb_to_gray(&frame, &mut self.gray)?;
         let mut cur = Pyramid::new(&mut self.cur, w, h, levels)?;
-        cur.build(&gray)?;
+        cur.build_rgb(&frame)?;
         let prev = if self.have_prev {
             Some(Pyramid::new(&mut self.prev, w, h, levels)?)
         } else {

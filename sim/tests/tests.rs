@@ -943,6 +943,9 @@ fn an_arrow_read_short_from_afar_gives_way_to_its_closer_readings() {
     }
 }
 
+/// A frame's annotated signs: class and box.
+type Signs = Vec<(u16, BBox)>;
+
 #[test]
 fn recorded_footage_is_a_dataset_of_the_processed_frames_and_their_signs() {
     let maze = Maze::builtin("train-b").unwrap();
@@ -952,14 +955,14 @@ fn recorded_footage_is_a_dataset_of_the_processed_frames_and_their_signs() {
     let mut rec = frugal_sim::FootageRecorder::create(&out, every).unwrap();
     let gt = GroundTruthPerception::default();
     // what the recorder should keep, seen through the same observer
-    let mut expected: Vec<(Vec<u8>, Vec<(u16, BBox)>)> = Vec::new();
+    let mut expected: Vec<(Vec<u8>, Signs)> = Vec::new();
     let mut frames = 0;
     for seed in [1, 2] {
         rec.begin_flight(&maze, seed);
         let mut observe = |v: &frugal_sim::FrameView<'_>| {
             frames += 1;
             rec.observe(v).unwrap();
-            if v.index % every == 0 {
+            if v.index.is_multiple_of(every) {
                 let signs = v
                     .truth
                     .signs

@@ -209,6 +209,27 @@ impl<'w> Pyramid<'w> {
         for (y, dst) in level0.chunks_exact_mut(w0).enumerate() {
             dst.copy_from_slice(frame.row(y).ok_or(TrackError::BadImage)?);
         }
+        self.build_upper()
+    }
+
+    /// Fills the pyramid from an RGB frame of level 0's size: [`rgb_to_gray`] straight
+    /// into level 0 (no separate gray image, no copy), then the upper levels. The same
+    /// pyramid as `rgb_to_gray` followed by [`Pyramid::build`].
+    pub fn build_rgb(&mut self, frame: &FrameRef<'_>) -> Result<(), TrackError> {
+        let (w0, h0) = (self.width(), self.height());
+        if (frame.width as usize, frame.height as usize) != (w0, h0) {
+            return Err(TrackError::SizeMismatch);
+        }
+        let level0 = self
+            .buf
+            .get_mut(..w0 * h0)
+            .ok_or(TrackError::WorkspaceTooSmall)?;
+        rgb_to_gray(frame, level0)?;
+        self.build_upper()
+    }
+
+    /// Levels 1 and up from level 0.
+    fn build_upper(&mut self) -> Result<(), TrackError> {
         for l in 1..self.levels {
             let (sw, sh) = *self.dims.get(l - 1).ok_or(TrackError::BadImage)?;
             let (dw, dh) = *self.dims.get(l).ok_or(TrackError::BadImage)?;
@@ -241,6 +262,9 @@ fn down_px(src: &GrayImage<'_>, x: usize, y: usize) -> u8 {
     ((sum + 8) >> 4) as u8
 }
 
+/// Widest row the fast interior path of [`downsample`] takes (a stack row of sums).
+const ROW_CHUNK: usize = 1024;
+
 fn downsample(src: &GrayImage<'_>, dst: &mut [u8], dw: usize) {
     let (sw, sh) = (src.width(), src.height());
     for (y, drow) in dst.chunks_exact_mut(dw).enumerate() {
@@ -251,6 +275,32 @@ fn downsample(src: &GrayImage<'_>, dst: &mut [u8], dw: usize) {
             src.row(2 * y + 1),
         );
         match (interior_rows, rows) {
+            (true, (Some(r0), Some(r1), Some(r2))) if sw <= ROW_CHUNK => {
+                // vertical [1 2 1] into a row of sums (vectorises), then horizontal
+                // [1 2 1] over pairs of sums: output x >= 1 reads sums 2x-1, 2x, 2x+1
+                let mut v = [0u16; ROW_CHUNK];
+                for (((o, a), b), c) in v.iter_mut().zip(r0).zip(r1).zip(r2) {
+                    *o = u16::from(*a) + 2 * u16::from(*b) + u16::from(*c);
+                }
+                let sums = v.get(1..sw).unwrap_or(&[]);
+                let pairs = sums.chunks_exact(2);
+                let mut done = 1;
+                for (d, (p0, p1)) in drow
+                    .iter_mut()
+                    .skip(1)
+                    .zip(pairs.clone().zip(pairs.skip(1)))
+                {
+                    if let ([a, b], [c, _]) = (p0, p1) {
+                        *d = ((u32::from(*a) + 2 * u32::from(*b) + u32::from(*c) + 8) >> 4) as u8;
+                    }
+                    done += 1;
+                }
+                for (x, d) in drow.iter_mut().enumerate() {
+                    if x == 0 || x >= done {
+                        *d = down_px(src, x, y);
+                    }
+                }
+            }
             (true, (Some(r0), Some(r1), Some(r2))) => {
                 // Output x >= 1 whose 3-wide window [2x-1, 2x+1] lies inside the row.
                 let (a, b, c) = (
@@ -287,5 +337,65 @@ fn downsample(src: &GrayImage<'_>, dst: &mut [u8], dw: usize) {
             }
         }
         let _ = sw;
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn building_from_rgb_is_gray_then_build() {
+        let (w, h) = (37, 23);
+        let rgb: std::vec::Vec<u8> = (0..w * h * 3).map(|i| (i * 7 % 251) as u8).collect();
+        let frame = FrameRef::new(w as u32, h as u32, &rgb).unwrap();
+        let mut gray = std::vec![0u8; w * h];
+        let g = rgb_to_gray(&frame, &mut gray).unwrap();
+        let need = Pyramid::required_len(w, h, 3).unwrap();
+        let (mut a, mut b) = (std::vec![0u8; need], std::vec![1u8; need]);
+        Pyramid::new(&mut a, w, h, 3).unwrap().build(&g).unwrap();
+        Pyramid::new(&mut b, w, h, 3)
+            .unwrap()
+            .build_rgb(&frame)
+            .unwrap();
+        assert_eq!(a, b);
+        let small = FrameRef::new(3, 3, rgb.get(..27).unwrap()).unwrap();
+        let mut p = Pyramid::new(&mut b, w, h, 3).unwrap();
+        assert_eq!(p.build_rgb(&small), Err(TrackError::SizeMismatch));
+    }
+
+    /// Every output pixel of [`downsample`] (both interior paths and the borders)
+    /// equals the filter's definition, [`down_px`], on noisy images of odd and even
+    /// sizes, narrow and wider than [`ROW_CHUNK`].
+    #[test]
+    fn downsample_is_the_filter_everywhere() {
+        let mut state = 0x9e37_79b9_u32;
+        for (w, h) in [
+            (480, 270),
+            (481, 271),
+            (7, 5),
+            (2, 2),
+            (1, 1),
+            (3, 1),
+            (1100, 9),
+        ] {
+            let px: std::vec::Vec<u8> = (0..w * h)
+                .map(|_| {
+                    state ^= state << 13;
+                    state ^= state >> 17;
+                    state ^= state << 5;
+                    (state >> 24) as u8
+                })
+                .collect();
+            let src = GrayImage::new(&px, w, h, w).unwrap();
+            let (dw, dh) = (w.div_ceil(2), h.div_ceil(2));
+            let mut dst = std::vec![0u8; dw * dh];
+            downsample(&src, &mut dst, dw);
+            for (i, d) in dst.iter().enumerate() {
+                let (x, y) = (i % dw, i / dw);
+                assert_eq!(*d, down_px(&src, x, y), "{w}x{h} at ({x}, {y})");
+            }
+        }
     }
 }
