@@ -9,16 +9,11 @@ fn maze(name: &str) -> PathBuf {
         .join(name)
 }
 
-#[test]
-fn fly_easy_maze_writes_table_files_plots_and_frames() {
-    let tmp = tempfile::tempdir().expect("tempdir");
-    let out = tmp.path().join("fly");
-    frugal(&[
+/// `frugal fly` with ground truth at 25 fps on the host and a 160×90 camera, quiet,
+/// plus `args`.
+fn small_flight<'a>(args: &[&'a str]) -> Vec<&'a str> {
+    let mut all = vec![
         "fly",
-        "--maze",
-        p(&maze("easy.maze")),
-        "--seeds",
-        "2",
         "--width",
         "160",
         "--height",
@@ -27,6 +22,21 @@ fn fly_easy_maze_writes_table_files_plots_and_frames() {
         "host",
         "--gt-compute-ms",
         "40",
+        "--quiet",
+    ];
+    all.extend_from_slice(args);
+    all
+}
+
+#[test]
+fn fly_easy_maze_writes_table_files_plots_and_frames() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let out = tmp.path().join("fly");
+    frugal(&small_flight(&[
+        "--maze",
+        p(&maze("easy.maze")),
+        "--seeds",
+        "2",
         "--frames-every",
         "200",
         "--gif",
@@ -34,8 +44,7 @@ fn fly_easy_maze_writes_table_files_plots_and_frames() {
         "100",
         "--out",
         p(&out),
-        "--quiet",
-    ])
+    ]))
     .expect("fly");
     let dir = out.join("easy");
     let summary: serde_json::Value =
@@ -131,28 +140,18 @@ fn fly_reports_bad_maze_lines_and_unknown_devices() {
 fn fly_records_its_frames_as_a_dataset_the_replay_can_read() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let footage = tmp.path().join("footage");
-    frugal(&[
-        "fly",
+    frugal(&small_flight(&[
         "--maze",
         "train-c",
         "--seeds",
         "1",
-        "--width",
-        "160",
-        "--height",
-        "90",
-        "--device",
-        "host",
-        "--gt-compute-ms",
-        "40",
         "--record",
         p(&footage),
         "--record-every",
         "20",
         "--out",
         p(&tmp.path().join("fly")),
-        "--quiet",
-    ])
+    ]))
     .expect("fly --record");
     let manifest = json(&footage.join("manifest.json"));
     assert_eq!(manifest["source"]["kind"], "flight");

@@ -438,24 +438,12 @@ impl Ctx {
                 } else {
                     "val,test"
                 };
-                let mut a = vec![
-                    s("policy"),
-                    s("record"),
-                    s("--data"),
-                    arg(&self.dir("data").join("dataset")),
-                    s("--variants"),
-                    arg(&self.dir("pareto").join("variants.json")),
-                    s("--out"),
-                    log.clone(),
-                    s("--splits"),
-                    s(splits),
-                    s("--train-split"),
-                    r.train_split.clone(),
-                    s("--threads"),
-                    r.threads.to_string(),
-                    s("--max-detections"),
-                    r.max_detections.to_string(),
-                ];
+                let mut a = self.record_args(
+                    &self.dir("data").join("dataset"),
+                    &log,
+                    splits,
+                    &r.train_split,
+                );
                 if r.per_combo > 0 {
                     a.extend([s("--per-combo"), r.per_combo.to_string()]);
                 }
@@ -553,29 +541,42 @@ impl Ctx {
             s("--record-every"),
             f.every.to_string(),
         ]);
-        let r = &self.config.replay;
-        let replay = vec![
-            s("policy"),
-            s("record"),
-            s("--data"),
-            arg(&out.join("footage")),
-            s("--variants"),
-            arg(&self.dir("pareto").join("variants.json")),
-            s("--out"),
-            arg(&out.join(FOOTAGE_LOG)),
-            s("--splits"),
-            s("val"),
-            s("--train-split"),
-            s("val"),
-            s("--threads"),
-            r.threads.to_string(),
-            s("--max-detections"),
-            r.max_detections.to_string(),
-        ];
+        let replay = self.record_args(
+            &out.join("footage"),
+            &arg(&out.join(FOOTAGE_LOG)),
+            "val",
+            "val",
+        );
         Ok(vec![
             self.frugal(&self.quiet(fly))?,
             self.frugal(&self.quiet(replay))?,
         ])
+    }
+
+    /// `frugal policy record` of the Pareto stage's variants on `data`'s `splits` into
+    /// `log`, the policy learning from `train_split`, with the `[replay]` settings.
+    fn record_args(&self, data: &Path, log: &str, splits: &str, train_split: &str) -> Vec<String> {
+        let r = &self.config.replay;
+        [
+            "policy",
+            "record",
+            "--data",
+            &arg(data),
+            "--variants",
+            &arg(&self.dir("pareto").join("variants.json")),
+            "--out",
+            log,
+            "--splits",
+            splits,
+            "--train-split",
+            train_split,
+            "--threads",
+            &r.threads.to_string(),
+            "--max-detections",
+            &r.max_detections.to_string(),
+        ]
+        .map(String::from)
+        .to_vec()
     }
 
     /// The static variant of the replay evaluation (the most accurate) as an ONNX folder.
