@@ -315,22 +315,11 @@ fn truth(video: &VideoLog, f: usize) -> Vec<Truth> {
 }
 
 /// True positives, false positives and false negatives of variant `v`'s reported
-/// detections on frame `f`, matched at `iou`.
+/// detections on frame `f`, matched at `iou`. Signs whose box is shorter than `min_px`
+/// are don't-care (0 counts every sign): missing one is no miss, and a detection that
+/// covers one (IoU ≥ `iou`, any class) and no sign that counts is no false alarm. A
+/// detection of nothing stays a false alarm, whatever its size.
 fn frame_counts(
-    log: &ReplayLog,
-    video: &VideoLog,
-    f: usize,
-    v: usize,
-    iou: f32,
-) -> (usize, usize, usize) {
-    frame_counts_from(log, video, f, v, iou, 0.0)
-}
-
-/// [`frame_counts`] where signs whose box is shorter than `min_px` are don't-care:
-/// missing one is no miss, and a detection that covers one (IoU ≥ `iou`, any class)
-/// and no sign that counts is no false alarm. A detection of nothing stays a false
-/// alarm, whatever its size.
-fn frame_counts_from(
     log: &ReplayLog,
     video: &VideoLog,
     f: usize,
@@ -355,20 +344,15 @@ fn frame_counts_from(
 
 /// Per-frame correctness of a variant: every sign found, no false alarm.
 pub fn correct(log: &ReplayLog, video: &VideoLog, f: usize, v: usize, iou: f32) -> bool {
-    let (_, fp, fneg) = frame_counts(log, video, f, v, iou);
+    let (_, fp, fneg) = frame_counts(log, video, f, v, iou, 0.0);
     fp == 0 && fneg == 0
 }
 
 /// The F1 of variant `v` on frame `f` alone, `2 tp / (2 tp + fp + fn)`: 1 when it
 /// reports exactly the signs there are (nothing, on a frame without signs), 0 when it
-/// finds none of them or only false alarms.
-pub fn frame_f1(log: &ReplayLog, video: &VideoLog, f: usize, v: usize, iou: f32) -> f64 {
-    frame_f1_from(log, video, f, v, iou, 0.0)
-}
-
-/// [`frame_f1`] over the signs whose box is at least `min_px` tall; smaller ones are
-/// don't-care (see [`PolicyConfig::outcome_min_px`](crate::PolicyConfig)).
-pub fn frame_f1_from(
+/// finds none of them or only false alarms. Signs shorter than `min_px` are don't-care
+/// (see [`PolicyConfig::outcome_min_px`](crate::PolicyConfig); 0 counts every sign).
+pub fn frame_f1(
     log: &ReplayLog,
     video: &VideoLog,
     f: usize,
@@ -376,7 +360,7 @@ pub fn frame_f1_from(
     iou: f32,
     min_px: f32,
 ) -> f64 {
-    let (tp, fp, fneg) = frame_counts_from(log, video, f, v, iou, min_px);
+    let (tp, fp, fneg) = frame_counts(log, video, f, v, iou, min_px);
     if tp + fp + fneg == 0 {
         1.0
     } else {

@@ -251,7 +251,7 @@ impl Transitions {
             for t in 1..video.frames.len() {
                 let (now, next) = (&video.frames[t - 1], &video.frames[t]);
                 let next_f1: Vec<f64> = (0..v_n)
-                    .map(|a| crate::eval::frame_f1_from(log, video, t, a, iou, min_px))
+                    .map(|a| crate::eval::frame_f1(log, video, t, a, iou, min_px))
                     .collect();
                 for v in 0..v_n {
                     let s = state(buckets[v].bucket(now.best_score(v)), v, v_n);

@@ -143,7 +143,7 @@ fn an_extra_logs_training_videos_add_to_the_transitions_under_the_main_logs_buck
 
 #[test]
 fn signs_below_outcome_min_px_are_dont_care_in_the_outcome() {
-    use frugal_policies::eval::frame_f1_from;
+    use frugal_policies::eval::frame_f1;
     let mut log = hand_log();
     let (near, far) = ([100.0, 100.0, 140.0, 140.0], [300.0, 50.0, 310.0, 60.0]);
     let at = |bbox: [f32; 4]| Det {
@@ -169,7 +169,7 @@ fn signs_below_outcome_min_px_are_dont_care_in_the_outcome() {
         vec![at(near)],
     ];
     let video = &log.videos[0];
-    let f1 = |v, min_px| frame_f1_from(&log, video, 1, v, 0.5, min_px);
+    let f1 = |v, min_px| frame_f1(&log, video, 1, v, 0.5, min_px);
     // every sign counts: a has 2 tp + 1 fp, b has 1 tp + 1 miss
     assert!((f1(0, 0.0) - 0.8).abs() < 1e-9, "{}", f1(0, 0.0));
     assert!((f1(1, 0.0) - 2.0 / 3.0).abs() < 1e-9);
