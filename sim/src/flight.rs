@@ -12,10 +12,10 @@
 //! average of recent frame intervals, so slow perception really slows the flight.
 use crate::maze::{Maze, cell_center};
 use crate::perception::{DeviceProfile, FrameInput, Perception, PerceptionError};
-use crate::render::{CameraSpec, FrameTruth, Pose, Renderer, Walker};
+use crate::render::{CameraSpec, FrameTruth, Pose, Renderer, SignTruth, Walker};
 use crate::texture::{hash_n, unit};
 use frugal_data::{NavAction, Sign};
-use frugal_runtime::{Detection, FrameRef};
+use frugal_runtime::{BBox, Detection, FrameRef};
 use std::f64::consts::{FRAC_PI_2, TAU};
 use std::time::Instant;
 use thiserror::Error;
@@ -29,6 +29,9 @@ struct Sighting {
     action: NavAction,
     at: f64,
     dist: f64,
+    /// The renderer's depth of the sign under the last reading's box, when its box
+    /// overlaps one: not used to navigate, only to report how far off a reading was.
+    true_dist: Option<f64>,
     support: f64,
     /// The highest support reached; a sighting that reached `confirm_frames` is
     /// kept (and acted on) even when the sign is no longer readable close up.
@@ -148,11 +151,12 @@ impl LineFit {
 }
 
 impl Sighting {
-    fn new(action: NavAction, odo: f64, dist: f64) -> Self {
+    fn new(action: NavAction, odo: f64, dist: f64, true_dist: Option<f64>) -> Self {
         Self {
             action,
             at: odo + dist,
             dist,
+            true_dist,
             support: 1.0,
             peak: 1.0,
             verified: false,
@@ -163,25 +167,27 @@ impl Sighting {
         }
     }
 
-    /// Another reading of this sign, `dist` ahead at odometer `odo`.
-    fn read(&mut self, odo: f64, dist: f64) {
+    /// Another reading of this sign, `dist` ahead at odometer `odo` (`true_dist`: see
+    /// [`Sighting::true_dist`]).
+    fn read(&mut self, odo: f64, dist: f64, true_dist: Option<f64>) {
         self.fit.add(odo, dist);
         if self.fit.span() >= RESTART_SPAN
             && self.fit.approach().is_some_and(|a| a < RESTART_APPROACH)
         {
-            *self = Self::new(self.action, odo, dist);
+            *self = Self::new(self.action, odo, dist, true_dist);
             return;
         }
         self.support += 1.0;
         self.peak = self.peak.max(self.support);
         self.at = odo + dist; // the closer reading is the better one
         self.dist = dist;
+        self.true_dist = true_dist;
     }
 
     /// The most accurate detector read it as `action`, `dist` ahead at `odo`: a vote,
     /// and the majority of the votes is its action (a tie goes to this reading).
-    fn confirmed(&mut self, action: NavAction, odo: f64, dist: f64) {
-        self.read(odo, dist);
+    fn confirmed(&mut self, action: NavAction, odo: f64, dist: f64, true_dist: Option<f64>) {
+        self.read(odo, dist, true_dist);
         self.votes[action_index(action)] += 1.0;
         let mine = self.votes[action_index(action)];
         if self.votes[action_index(self.action)] <= mine {
@@ -425,6 +431,10 @@ pub struct FlightResult {
     /// found no turn or STOP sign at its spot (a re-reading that finds none abstains).
     #[serde(default)]
     pub rejections: u64,
+    /// Every confirmation reading, against the renderer's ground truth: how often,
+    /// and how far away, the most accurate detector misreads a sign.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub confirmation_reads: Vec<ConfirmationRead>,
     /// What the perception ran during the flight, by name ([`Perception::counts`]:
     /// for the adaptive runtime, frames detected by trigger and runs per variant).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -433,6 +443,24 @@ pub struct FlightResult {
     pub track: Vec<TrackPoint>,
     /// Turns, waits, landing, collision.
     pub events: Vec<Event>,
+}
+
+/// One confirmation of a sighting by the most accurate detector
+/// ([`Perception::confirm`]), next to what the renderer knows.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ConfirmationRead {
+    /// Simulated time, s.
+    pub t: f64,
+    /// The sighting's action before this reading.
+    pub sighting: NavAction,
+    /// The turn or STOP sign read at the sighting's spot (`None`: none there).
+    pub read: Option<NavAction>,
+    /// Its distance from its box height, metres.
+    pub read_m: Option<f64>,
+    /// What the sign under the read box (the one it overlaps most) tells the drone to do …
+    pub truth: Option<NavAction>,
+    /// … and its depth, metres.
+    pub true_m: Option<f64>,
 }
 
 /// What an observer sees of each processed frame.
@@ -593,6 +621,7 @@ pub fn fly(
     let (mut compute_total, mut render_total) = (0.0, 0.0);
     let (mut sign_frames, mut sign_hits, mut false_detections) = (0u64, 0u64, 0u64);
     let (mut confirmations, mut rejections) = (0u64, 0u64);
+    let mut confirmation_reads = Vec::new();
     // compute time of confirmations, charged to the next interval
     let mut pending_ms = 0.0;
     let f_px = cam.focal_px();
@@ -743,10 +772,11 @@ pub fn fly(
                     acts.then_some((action, dist))
                 };
                 // the first detection this frame that would make the drone act …
-                let candidate = outranked_dropped(&percept.detections).find_map(reading);
+                let candidate = outranked_dropped(&percept.detections)
+                    .find_map(|d| reading(d).map(|(action, dist)| (action, dist, d.bbox)));
                 let need = nav.confirm_frames.max(1);
                 match candidate {
-                    Some((NavAction::Wait, dist)) => {
+                    Some((NavAction::Wait, dist, _)) => {
                         // … a WAIT sign after `need` frames in a row …
                         streak = match streak {
                             Some((NavAction::Wait, n)) => Some((NavAction::Wait, n + 1)),
@@ -766,16 +796,17 @@ pub fn fly(
                     }
                     // … a turn or STOP sign is placed on the odometer, where readings
                     // of it accumulate
-                    Some((action, dist)) => {
+                    Some((action, dist, bbox)) => {
                         streak = None;
+                        let true_dist = true_depth(&truth, &bbox);
                         let at = odo + dist;
                         let tol = spot_tolerance(dist);
                         match sightings
                             .iter_mut()
                             .find(|s| (s.action == action || s.settled) && (s.at - at).abs() <= tol)
                         {
-                            Some(s) => s.read(odo, dist),
-                            None => sightings.push(Sighting::new(action, odo, dist)),
+                            Some(s) => s.read(odo, dist, true_dist),
+                            None => sightings.push(Sighting::new(action, odo, dist, true_dist)),
                         }
                     }
                     None => streak = None,
@@ -821,21 +852,32 @@ pub fn fly(
                             let s = &mut sightings[i];
                             let tol = |dist: f64| spot_tolerance(dist.max(s.dist));
                             let agrees = outranked_dropped(&check.detections)
-                                .filter_map(reading)
-                                .find(|&(action, dist)| {
+                                .filter_map(|d| reading(d).map(|r| (r, d.bbox)))
+                                .find(|&((action, dist), _)| {
                                     action != NavAction::Wait
                                         && (odo + dist - s.at).abs() <= tol(dist)
                                 });
-                            if let Some((action, dist)) = agrees {
+                            let seen = agrees.and_then(|(_, bbox)| true_sign(&truth, &bbox));
+                            confirmation_reads.push(ConfirmationRead {
+                                t,
+                                sighting: s.action,
+                                read: agrees.map(|((action, _), _)| action),
+                                read_m: agrees.map(|((_, dist), _)| dist),
+                                truth: seen.and_then(|g| Sign::from_id(g.class)?.action()),
+                                true_m: seen.map(|g| g.depth),
+                            });
+                            if let Some(((action, dist), _)) = agrees {
                                 let (before, was) = (s.action, s.verified);
-                                s.confirmed(action, odo, dist);
+                                let true_dist = seen.map(|g| g.depth);
+                                s.confirmed(action, odo, dist, true_dist);
                                 if !was || s.action != before {
                                     events.push(Event {
                                         t,
                                         x: pose.x,
                                         y: pose.y,
                                         what: format!(
-                                            "{before:?} sign {dist:.2} m ahead confirmed as {:?}",
+                                            "{before:?} sign {dist:.2} m ahead{} confirmed as {:?}",
+                                            truly(true_dist),
                                             s.action
                                         ),
                                     });
@@ -908,6 +950,7 @@ pub fn fly(
                     Some(Sighting {
                         action: NavAction::Stop,
                         dist,
+                        true_dist,
                         ..
                     }) if mode == Mode::Cruise => {
                         sightings.clear();
@@ -916,12 +959,16 @@ pub fn fly(
                             t,
                             x: pose.x,
                             y: pose.y,
-                            what: format!("land at STOP (last read at {dist:.2} m)"),
+                            what: format!(
+                                "land at STOP (last read at {dist:.2} m{})",
+                                truly(true_dist)
+                            ),
                         });
                     }
                     Some(Sighting {
                         action: action @ (NavAction::TurnLeft | NavAction::TurnRight),
                         dist,
+                        true_dist,
                         fit,
                         ..
                     }) if mode == Mode::Cruise => {
@@ -936,8 +983,9 @@ pub fn fly(
                             x: pose.x,
                             y: pose.y,
                             what: format!(
-                                "turn {} (last read at {dist:.2} m; {} readings over {:.2} m, approach {:.2})",
+                                "turn {} (last read at {dist:.2} m{}; {} readings over {:.2} m, approach {:.2})",
                                 if left { "left" } else { "right" },
+                                truly(true_dist),
                                 fit.n,
                                 fit.span(),
                                 fit.approach().unwrap_or(f64::NAN)
@@ -1019,10 +1067,33 @@ pub fn fly(
         false_detections,
         confirmations,
         rejections,
+        confirmation_reads,
         perception_counts: perception.counts(),
         track,
         events,
     })
+}
+
+/// The sign board that `bbox` overlaps most, if it overlaps one: what a reading of
+/// that box should have said.
+fn true_sign<'t>(truth: &'t FrameTruth, bbox: &BBox) -> Option<&'t SignTruth> {
+    truth
+        .signs
+        .iter()
+        .map(|s| (s.bbox.iou(bbox), s))
+        .filter(|&(iou, _)| iou > 0.0)
+        .max_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, s)| s)
+}
+
+/// The depth of [`true_sign`].
+fn true_depth(truth: &FrameTruth, bbox: &BBox) -> Option<f64> {
+    true_sign(truth, bbox).map(|s| s.depth)
+}
+
+/// ", truly X m" for an event, when the renderer knows the distance.
+fn truly(true_dist: Option<f64>) -> String {
+    true_dist.map_or_else(String::new, |d| format!(", truly {d:.2} m"))
 }
 
 /// In-loop detection quality against the renderer's ground truth.

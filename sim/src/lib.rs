@@ -97,7 +97,8 @@ pub mod texture;
 
 pub use adaptive::{AdaptivePerception, static_onnx};
 pub use flight::{
-    FlightConfig, FlightError, FlightResult, FrameView, Mode, NavConfig, Outcome, fly,
+    ConfirmationRead, FlightConfig, FlightError, FlightResult, FrameView, Mode, NavConfig, Outcome,
+    fly,
 };
 pub use maze::{Dir, Lighting, LineProblem, Maze, MazeError, Mount, SignSpec, WaitZone};
 pub use perception::{

@@ -326,6 +326,29 @@ fn ground_truth_flights_complete_every_shipped_maze() {
             r.events
         );
         assert_eq!(count("land"), 1);
+        // each manoeuvre names how far the renderer says its sign was at the last
+        // reading, and exact boxes read it right
+        for e in r
+            .events
+            .iter()
+            .filter(|e| e.what.starts_with("turn ") || e.what.starts_with("land"))
+        {
+            let metres = |key: &str| -> f64 {
+                let rest = &e.what[e
+                    .what
+                    .find(key)
+                    .unwrap_or_else(|| panic!("{}: no `{key}`", e.what))
+                    + key.len()..];
+                rest[..rest.find(" m").unwrap()].parse().unwrap()
+            };
+            let (read, truly) = (metres("last read at "), metres("truly "));
+            assert!(
+                (read / truly - 1.0).abs() < 0.1,
+                "{}: {}",
+                maze.name,
+                e.what
+            );
+        }
         // 5 ms × the tx2-like slowdown of 6 = 30 ms per frame.
         assert!((r.fps - 1000.0 / 30.0).abs() < 0.1, "{}", r.fps);
         assert!(
