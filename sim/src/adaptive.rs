@@ -172,6 +172,7 @@ impl Perception for AdaptivePerception {
         Ok(Percept {
             detections,
             compute_ms: elapsed.as_secs_f64() * 1e3,
+            tracked: decision == Decision::Track,
         })
     }
 
@@ -196,6 +197,7 @@ impl Perception for AdaptivePerception {
         Ok(Some(Percept {
             detections,
             compute_ms: started.elapsed().as_secs_f64() * 1e3,
+            tracked: false,
         }))
     }
 

@@ -49,6 +49,12 @@ struct Sighting {
     /// approached, the majority decides its action (one accurate reading of a small
     /// far arrow can be mirrored too).
     votes: [f64; 4],
+    /// Re-readings by the most accurate detector that found no turn or STOP sign at its
+    /// spot. A sign it once read can be missed on a frame, so one such reading abstains;
+    /// but once they outnumber the votes of its action, the first reading was a false
+    /// alarm and the sighting is dropped (session 10: a confirmed false "turn left" on
+    /// a wall, never read again over 2.4 m, turned the drone into that wall).
+    blanks: f64,
     /// Odometer at its last confirmation.
     confirmed_at: f64,
     /// Least-squares fit of the distance read against the odometer over the
@@ -162,6 +168,7 @@ impl Sighting {
             verified: false,
             settled: false,
             votes: [0.0; 4],
+            blanks: 0.0,
             confirmed_at: f64::NEG_INFINITY,
             fit: LineFit::new(odo, dist),
         }
@@ -182,6 +189,14 @@ impl Sighting {
         self.at = odo + dist; // the closer reading is the better one
         self.dist = dist;
         self.true_dist = true_dist;
+    }
+
+    /// A tracker carried a box onto it ([`Percept::tracked`](crate::Percept::tracked)):
+    /// the sign is still there, but the box's size is a prediction, so the reading
+    /// supports the sighting without placing it.
+    fn carried(&mut self) {
+        self.support += 1.0;
+        self.peak = self.peak.max(self.support);
     }
 
     /// The most accurate detector read it as `action`, `dist` ahead at `odo`: a vote,
@@ -805,7 +820,13 @@ pub fn fly(
                             .iter_mut()
                             .find(|s| (s.action == action || s.settled) && (s.at - at).abs() <= tol)
                         {
+                            // a carried box keeps a sighting alive but neither places
+                            // nor starts one: its size is the tracker's prediction (a
+                            // box stuck at one size close up would push the manoeuvre
+                            // ahead of the drone; a far sign boxed too large stays so)
+                            Some(s) if percept.tracked => s.carried(),
                             Some(s) => s.read(odo, dist, true_dist),
+                            None if percept.tracked => {}
                             None => sightings.push(Sighting::new(action, odo, dist, true_dist)),
                         }
                     }
@@ -883,8 +904,25 @@ pub fn fly(
                                     });
                                 }
                             } else if s.verified {
-                                // confirmed before: this reading abstains
+                                // confirmed before: this reading abstains, unless such
+                                // readings now outnumber the votes of its action
+                                s.blanks += 1.0;
                                 s.confirmed_at = odo;
+                                let best = s.votes.iter().copied().fold(0.0, f64::max);
+                                if s.blanks > best {
+                                    let (action, at) = (s.action, s.at);
+                                    events.push(Event {
+                                        t,
+                                        x: pose.x,
+                                        y: pose.y,
+                                        what: format!(
+                                            "{action:?} sign {:.2} m ahead no longer confirmed ({} readings of nothing there)",
+                                            at - odo,
+                                            s.blanks
+                                        ),
+                                    });
+                                    sightings.remove(i);
+                                }
                             } else {
                                 rejections += 1;
                                 let at = s.at;

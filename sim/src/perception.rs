@@ -28,6 +28,11 @@ pub struct Percept {
     /// The flight multiplies it by the device profile's slowdown to advance the
     /// simulated clock.
     pub compute_ms: f64,
+    /// The detections are boxes a tracker carried from an earlier frame's detection,
+    /// not measured on this one: they say a sign is still there, but their size (and
+    /// so the distance read from it) is the tracker's prediction, which drifts and
+    /// keeps a misdrawn box's error. The navigator places signs by measured boxes only.
+    pub tracked: bool,
 }
 
 /// An error from a perception implementation (boxed so any detector's error fits).
@@ -125,6 +130,7 @@ impl Perception for GroundTruthPerception {
             })
             .collect();
         Ok(Percept {
+            tracked: false,
             detections,
             compute_ms: self.compute_ms,
         })
@@ -184,6 +190,7 @@ where
             .copied()
             .collect();
         Ok(Percept {
+            tracked: false,
             detections,
             compute_ms,
         })

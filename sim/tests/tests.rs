@@ -789,6 +789,7 @@ fn perception_errors_name_the_frame() {
             Ok(Percept {
                 detections: Vec::new(),
                 compute_ms: 10.0,
+                tracked: false,
             })
         }
     };
@@ -1078,4 +1079,95 @@ fn an_unfinished_recording_leaves_the_old_folder_alone() {
     assert_eq!(std::fs::read(out.join("keep.txt")).unwrap(), b"old");
     let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
     assert_eq!(left.len(), 1, "the partial folder is removed");
+}
+
+/// Ground truth whose most accurate detector reads every turn sign mirrored on its
+/// first confirmation and nothing at all afterwards: a false alarm it confirmed once.
+struct ConfirmedOnce {
+    gt: GroundTruthPerception,
+    confirmations: u32,
+}
+
+impl frugal_sim::Perception for ConfirmedOnce {
+    fn name(&self) -> String {
+        "confirmed-once".into()
+    }
+    fn perceive(&mut self, input: &FrameInput<'_>) -> Result<Percept, PerceptionError> {
+        frugal_sim::Perception::perceive(&mut self.gt, input)
+    }
+    fn confirm(&mut self, input: &FrameInput<'_>) -> Result<Option<Percept>, PerceptionError> {
+        self.confirmations += 1;
+        let mut p = frugal_sim::Perception::perceive(&mut self.gt, input)?;
+        let (left, right) = (Sign::TurnLeft.id(), Sign::TurnRight.id());
+        if self.confirmations == 1 {
+            for d in &mut p.detections {
+                if d.class == left || d.class == right {
+                    d.class = if d.class == left { right } else { left };
+                }
+            }
+        } else {
+            p.detections.clear();
+        }
+        Ok(Some(p))
+    }
+}
+
+#[test]
+fn a_sign_the_accurate_detector_confirmed_once_and_never_read_again_is_not_acted_on() {
+    let maze = Maze::builtin("easy").unwrap();
+    let mut perception = ConfirmedOnce {
+        gt: GroundTruthPerception::default(),
+        confirmations: 0,
+    };
+    let config = FlightConfig {
+        nav: frugal_sim::NavConfig {
+            time_limit_s: 60.0,
+            ..frugal_sim::NavConfig::default()
+        },
+        ..fast_config()
+    };
+    let r = frugal_sim::fly(&maze, &config, &mut perception, 1, None).unwrap();
+    let has = |p: &str| r.events.iter().any(|e| e.what.contains(p));
+    // the one mirrored confirmation made it a right turn; the readings of nothing
+    // that followed dropped it before the drone turned the wrong way
+    assert!(has("confirmed as TurnRight"), "{:?}", r.events);
+    assert!(has("no longer confirmed"), "{:?}", r.events);
+    assert!(!has("turn right"), "{:?}", r.events);
+    assert!(perception.confirmations > 2);
+}
+
+#[test]
+fn boxes_a_tracker_carried_keep_a_sign_in_view_but_never_place_one() {
+    let maze = Maze::builtin("easy").unwrap();
+    let config = FlightConfig {
+        nav: frugal_sim::NavConfig {
+            time_limit_s: 60.0,
+            ..frugal_sim::NavConfig::default()
+        },
+        ..fast_config()
+    };
+    // every frame carried: the sign is seen on every frame, yet never measured
+    let mut gt = GroundTruthPerception::default();
+    let mut carried = |input: &FrameInput<'_>| -> Result<Percept, PerceptionError> {
+        let p = frugal_sim::Perception::perceive(&mut gt, input)?;
+        Ok(Percept { tracked: true, ..p })
+    };
+    let r = frugal_sim::fly(&maze, &config, &mut carried, 1, None).unwrap();
+    assert!(r.sign_hits > 0);
+    assert!(
+        !r.events.iter().any(|e| e.what.starts_with("turn ")),
+        "{:?}",
+        r.events
+    );
+    // measured on every other frame: the drone turns where the sign is and lands
+    let mut gt = GroundTruthPerception::default();
+    let mut every_other = |input: &FrameInput<'_>| -> Result<Percept, PerceptionError> {
+        let p = frugal_sim::Perception::perceive(&mut gt, input)?;
+        Ok(Percept {
+            tracked: input.index % 2 == 1,
+            ..p
+        })
+    };
+    let r = frugal_sim::fly(&maze, &fast_config(), &mut every_other, 1, None).unwrap();
+    assert_eq!(r.outcome, Outcome::Success, "{:?}", r.events);
 }
