@@ -80,7 +80,7 @@ const RESTART_SPAN: f64 = 1.0;
 const RESTART_APPROACH: f64 = 0.25;
 /// A confirmed sign is read again by the most accurate detector every this many
 /// metres flown until the drone acts on it.
-const RECONFIRM_EVERY: f64 = 0.5;
+const RECONFIRM_EVERY: f64 = 1.0;
 
 /// One reading per sign: a detection is dropped when a higher-scoring one of any class
 /// covers the same box (IoU ≥ 0.5). The detectors suppress overlaps per class, so a
