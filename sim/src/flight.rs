@@ -443,7 +443,8 @@ pub struct FlightResult {
     #[serde(default)]
     pub confirmations: u64,
     /// Of the confirmations, those that dropped a sighting: the first reading of it
-    /// found no turn or STOP sign at its spot (a re-reading that finds none abstains).
+    /// found no turn or STOP sign at its spot (a re-reading that finds none abstains
+    /// until such readings outnumber the votes of its action; see `Sighting::blanks`).
     #[serde(default)]
     pub rejections: u64,
     /// Every confirmation reading, against the renderer's ground truth: how often,
