@@ -184,17 +184,16 @@ impl Sighting {
             *self = Self::new(self.action, odo, dist, true_dist);
             return;
         }
-        self.support += 1.0;
-        self.peak = self.peak.max(self.support);
+        self.seen_again();
         self.at = odo + dist; // the closer reading is the better one
         self.dist = dist;
         self.true_dist = true_dist;
     }
 
-    /// A tracker carried a box onto it ([`Percept::tracked`](crate::Percept::tracked)):
-    /// the sign is still there, but the box's size is a prediction, so the reading
-    /// supports the sighting without placing it.
-    fn carried(&mut self) {
+    /// One more reading supports it. On its own: a tracker carried a box onto it
+    /// ([`Percept::tracked`](crate::Percept::tracked)), so the sign is still there, but
+    /// the box's size is a prediction and does not place it.
+    fn seen_again(&mut self) {
         self.support += 1.0;
         self.peak = self.peak.max(self.support);
     }
@@ -814,9 +813,9 @@ pub fn fly(
                     // of it accumulate
                     Some((action, dist, bbox)) => {
                         streak = None;
-                        let true_dist = true_depth(&truth, &bbox);
                         let at = odo + dist;
                         let tol = spot_tolerance(dist);
+                        let true_dist = || true_sign(&truth, &bbox).map(|g| g.depth);
                         match sightings
                             .iter_mut()
                             .find(|s| (s.action == action || s.settled) && (s.at - at).abs() <= tol)
@@ -825,10 +824,10 @@ pub fn fly(
                             // nor starts one: its size is the tracker's prediction (a
                             // box stuck at one size close up would push the manoeuvre
                             // ahead of the drone; a far sign boxed too large stays so)
-                            Some(s) if percept.tracked => s.carried(),
-                            Some(s) => s.read(odo, dist, true_dist),
+                            Some(s) if percept.tracked => s.seen_again(),
+                            Some(s) => s.read(odo, dist, true_dist()),
                             None if percept.tracked => {}
-                            None => sightings.push(Sighting::new(action, odo, dist, true_dist)),
+                            None => sightings.push(Sighting::new(action, odo, dist, true_dist())),
                         }
                     }
                     None => streak = None,
@@ -1123,11 +1122,6 @@ fn true_sign<'t>(truth: &'t FrameTruth, bbox: &BBox) -> Option<&'t SignTruth> {
         .filter(|&(iou, _)| iou > 0.0)
         .max_by(|a, b| a.0.total_cmp(&b.0))
         .map(|(_, s)| s)
-}
-
-/// The depth of [`true_sign`].
-fn true_depth(truth: &FrameTruth, bbox: &BBox) -> Option<f64> {
-    true_sign(truth, bbox).map(|s| s.depth)
 }
 
 /// ", truly X m" for an event, when the renderer knows the distance.
