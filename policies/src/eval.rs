@@ -156,7 +156,8 @@ pub struct EvalConfig {
     /// Seed of the random strategy.
     pub seed: u64,
     /// Which detections the tracker strategies carry: `"optimal"` (from the variant's
-    /// `c_opt` up, the default) or `"good-enough"` (from `c_ge` up), as the runtime's
+    /// `c_opt` up, the default), `"good-enough"` (from `c_ge` up) or `"reported"` (from
+    /// `T_c` up, the paper's rule), as the runtime's
     /// `Pilot::with_carry`.
     pub carry: CarryFrom,
 }
@@ -171,6 +172,8 @@ pub enum CarryFrom {
     Optimal,
     /// From the variant's good-enough bucket up.
     GoodEnough,
+    /// Every reported detection (from the family's `T_c` up): the paper's rule.
+    Reported,
 }
 
 impl From<CarryFrom> for Carry {
@@ -178,6 +181,7 @@ impl From<CarryFrom> for Carry {
         match c {
             CarryFrom::Optimal => Carry::Optimal,
             CarryFrom::GoodEnough => Carry::GoodEnough,
+            CarryFrom::Reported => Carry::Reported,
         }
     }
 }

@@ -57,7 +57,10 @@ use crate::track::{Pyramid, Tracker, TrackerParams};
 /// [`Carry::GoodEnough`] is for a caller that checks a reading before acting on it
 /// (the maze flights confirm a sign with the most accurate variant before turning) and
 /// would rather spend the compute on frames: it carries every detection of the
-/// adequate bucket up. Either way a reported detection that is not carried makes the
+/// good-enough bucket up. [`Carry::Reported`] is the paper's rule: every reported
+/// detection (at least `T_c`) is carried, and only a weak score, a lost track or a
+/// drifted box brings the detector back; it suits a caller that never acts on a
+/// carried box alone. Either way a reported detection that is not carried makes the
 /// next frame a detection frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Carry {
@@ -66,6 +69,8 @@ pub enum Carry {
     Optimal,
     /// From the variant's good-enough bucket up (`c_ge`).
     GoodEnough,
+    /// Every reported detection: from the family's `T_c` up (the paper's rule).
+    Reported,
 }
 
 impl Carry {
@@ -74,8 +79,24 @@ impl Carry {
         match self {
             Carry::Optimal => buckets.c_opt,
             Carry::GoodEnough => buckets.c_ge,
+            Carry::Reported => buckets.t_c,
         }
     }
+}
+
+/// What became of the boxes the [`Pilot`] was handed, counted since it was made
+/// (wrapping `u32`s): why a frame after a detection could not be a tracked frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TrackStats {
+    /// Reported boxes whose tracker started.
+    pub started: u32,
+    /// Reported boxes scoring below [`Pilot::track_score`], so not carried.
+    pub not_carried: u32,
+    /// Reported boxes whose tracker could not start (too few corners, or a box that
+    /// does not fit the frame).
+    pub failed_to_start: u32,
+    /// Tracks that ended between detections (too few points survived a frame).
+    pub lost: u32,
 }
 
 /// One held track: its tracker and the detection it started from.
@@ -96,6 +117,7 @@ pub struct Pilot<'b, const TRACKS: usize, const POINTS: usize> {
     carry: Carry,
     /// A reported detection of the last detection frame has no tracker.
     untracked: bool,
+    stats: TrackStats,
 }
 
 impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
@@ -117,6 +139,12 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
             limit: TRACKS,
             carry: Carry::Optimal,
             untracked: false,
+            stats: TrackStats {
+                started: 0,
+                not_carried: 0,
+                failed_to_start: 0,
+                lost: 0,
+            },
         }
     }
 
@@ -151,6 +179,11 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
         &self.controller
     }
 
+    /// What became of the boxes handed over so far.
+    pub const fn track_stats(&self) -> TrackStats {
+        self.stats
+    }
+
     /// How many boxes are being tracked.
     pub const fn tracking(&self) -> usize {
         self.active
@@ -183,7 +216,10 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
                         }
                         worst.1 = worst.1.min(o.quality);
                     }
-                    Err(_) => worst.1 = 0.0,
+                    Err(_) => {
+                        worst.1 = 0.0;
+                        self.stats.lost = self.stats.lost.wrapping_add(1);
+                    }
                 }
                 if h.tracker.is_active() {
                     self.held.swap(kept, i);
@@ -211,7 +247,7 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
 
     /// The score at which the current variant's detections are tracked: the lower edge
     /// of its family's optimal bucket, `c_opt` (good-enough bucket, `c_ge`, under
-    /// [`Carry::GoodEnough`]).
+    /// [`Carry::GoodEnough`]; `T_c` under [`Carry::Reported`]).
     pub fn track_score(&self) -> f32 {
         let ctl = &self.controller;
         ctl.bundle()
@@ -243,14 +279,17 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
             };
             if d.score < carry {
                 self.untracked = true;
+                self.stats.not_carried = self.stats.not_carried.wrapping_add(1);
                 continue;
             }
             h.tracker.reset();
             if h.tracker.init(cur, d.bbox).is_ok() {
                 h.detection = *d;
                 self.active += 1;
+                self.stats.started = self.stats.started.wrapping_add(1);
             } else {
                 self.untracked = true;
+                self.stats.failed_to_start = self.stats.failed_to_start.wrapping_add(1);
             }
         }
         self.controller

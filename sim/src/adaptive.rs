@@ -105,6 +105,7 @@ impl AdaptivePerception {
         let kind = match carry {
             Carry::Optimal => "",
             Carry::GoodEnough => "-carry-ge",
+            Carry::Reported => "-carry-reported",
         };
         self.label.push_str(kind);
         self
@@ -223,6 +224,18 @@ impl Perception for AdaptivePerception {
                     ]
                 });
         triggers
+            .chain({
+                let t = self.pilot.track_stats();
+                [
+                    ("boxes tracked".to_string(), u64::from(t.started)),
+                    ("boxes not carried".to_string(), u64::from(t.not_carried)),
+                    (
+                        "trackers failed to start".to_string(),
+                        u64::from(t.failed_to_start),
+                    ),
+                    ("tracks lost".to_string(), u64::from(t.lost)),
+                ]
+            })
             .chain([
                 ("frames tracked".to_string(), self.tracked_frames),
                 ("µs on tracked frames".to_string(), self.tracked_us),

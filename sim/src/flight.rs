@@ -22,8 +22,8 @@ use thiserror::Error;
 
 /// A turn or STOP sign read ahead: its action, where it stands on the odometer, the
 /// last distance read, and its support: +1 per agreeing reading, × [`SUPPORT_DECAY`]
-/// per processed frame, so only a sign read on most recent frames reaches
-/// `confirm_frames`.
+/// per processed frame that neither reads it nor carries a tracked box onto it, so
+/// only a sign read on most recent detection frames reaches `confirm_frames`.
 #[derive(Clone, Copy, Debug)]
 struct Sighting {
     action: NavAction,
@@ -57,6 +57,8 @@ struct Sighting {
     blanks: f64,
     /// Odometer at its last confirmation.
     confirmed_at: f64,
+    /// A tracker carried a box onto it this frame: its support does not fade.
+    held: bool,
     /// Least-squares fit of the distance read against the odometer over the
     /// sighting's readings: a sign that stands still comes closer by as much as the
     /// drone flies (slope −1). A far sign whose box a detector cannot draw small enough
@@ -170,6 +172,7 @@ impl Sighting {
             votes: [0.0; 4],
             blanks: 0.0,
             confirmed_at: f64::NEG_INFINITY,
+            held: false,
             fit: LineFit::new(odo, dist),
         }
     }
@@ -184,18 +187,21 @@ impl Sighting {
             *self = Self::new(self.action, odo, dist, true_dist);
             return;
         }
-        self.seen_again();
+        self.support += 1.0;
+        self.peak = self.peak.max(self.support);
         self.at = odo + dist; // the closer reading is the better one
         self.dist = dist;
         self.true_dist = true_dist;
     }
 
-    /// One more reading supports it. On its own: a tracker carried a box onto it
-    /// ([`Percept::tracked`](crate::Percept::tracked)), so the sign is still there, but
-    /// the box's size is a prediction and does not place it.
-    fn seen_again(&mut self) {
-        self.support += 1.0;
-        self.peak = self.peak.max(self.support);
+    /// A tracker carried a box onto it ([`Percept::tracked`](crate::Percept::tracked)):
+    /// the sign is still in view, so its support does not fade this frame. The box is
+    /// the tracker's prediction from the last detection, not a new reading: it adds no
+    /// support (a weak false detection carried for `M` frames would otherwise build
+    /// the support of a measured sign and be confirmed), and its size does not place
+    /// the sign.
+    fn hold(&mut self) {
+        self.held = true;
     }
 
     /// The most accurate detector read it as `action`, `dist` ahead at `odo`: a vote,
@@ -820,11 +826,13 @@ pub fn fly(
                             .iter_mut()
                             .find(|s| (s.action == action || s.settled) && (s.at - at).abs() <= tol)
                         {
-                            // a carried box keeps a sighting alive but neither places
-                            // nor starts one: its size is the tracker's prediction (a
-                            // box stuck at one size close up would push the manoeuvre
-                            // ahead of the drone; a far sign boxed too large stays so)
-                            Some(s) if percept.tracked => s.seen_again(),
+                            // a carried box holds a sighting's support but adds none,
+                            // and neither places nor starts a sighting: it repeats the
+                            // last detection (a weak false one would build support
+                            // frame after frame) and its size is the tracker's
+                            // prediction (a box stuck at one size close up would push
+                            // the manoeuvre ahead of the drone)
+                            Some(s) if percept.tracked => s.hold(),
                             Some(s) => s.read(odo, dist, true_dist()),
                             None if percept.tracked => {}
                             None => sightings.push(Sighting::new(action, odo, dist, true_dist())),
@@ -982,7 +990,9 @@ pub fn fly(
                     .max_by(|a, b| a.peak.total_cmp(&b.peak))
                     .copied();
                 for s in &mut sightings {
-                    s.support *= SUPPORT_DECAY;
+                    if !std::mem::take(&mut s.held) {
+                        s.support *= SUPPORT_DECAY;
+                    }
                 }
                 match due {
                     Some(Sighting {

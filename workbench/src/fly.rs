@@ -35,8 +35,9 @@ pub struct FlyArgs {
     #[arg(long)]
     pub bundle: Option<PathBuf>,
     /// Which detections the adaptive runtime carries with its trackers: from the
-    /// optimal bucket up (the default, as the replay evaluation) or from the
-    /// good-enough bucket up (the flight confirms a sign before acting on it).
+    /// optimal bucket up (the default, as the replay evaluation), from the
+    /// good-enough bucket up, or every reported one (the paper's rule). The flight
+    /// confirms a sign before acting on it and never places one from a carried box.
     #[arg(long, value_enum, default_value_t = CarryArg::Optimal)]
     pub carry: CarryArg,
     /// ONNX Runtime intra-op threads for detector-based perception.
@@ -94,6 +95,8 @@ pub enum CarryArg {
     Optimal,
     /// From the variant's `c_ge` up.
     GoodEnough,
+    /// Every reported detection: from the family's `T_c` up (the paper's rule).
+    Reported,
 }
 
 /// Perception choices.
@@ -135,6 +138,7 @@ fn perception(args: &FlyArgs) -> anyhow::Result<Box<dyn Perception>> {
                     .with_carry(match args.carry {
                         CarryArg::Optimal => frugal_runtime::pilot::Carry::Optimal,
                         CarryArg::GoodEnough => frugal_runtime::pilot::Carry::GoodEnough,
+                        CarryArg::Reported => frugal_runtime::pilot::Carry::Reported,
                     }),
             )
         }
@@ -161,7 +165,7 @@ pub fn run(args: FlyArgs) -> anyhow::Result<()> {
     anyhow::ensure!(args.seeds >= 1, "--seeds must be at least 1");
     anyhow::ensure!(
         args.carry == CarryArg::Optimal || args.perception == PerceptionKind::Adaptive,
-        "--carry good-enough applies to the adaptive runtime's trackers (--perception adaptive)"
+        "--carry other than optimal applies to the adaptive runtime's trackers (--perception adaptive)"
     );
     anyhow::ensure!(
         args.gt_compute_ms >= 0.0,

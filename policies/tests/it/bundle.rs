@@ -171,7 +171,11 @@ fn the_runtime_pilot_flies_the_replay_frame_by_frame() {
     let levels = TrackerParams::DEFAULT.lk.levels;
     // (tracked frames, detection frames with a reported box left untracked) per carry
     let mut counts = Vec::new();
-    for carry in [CarryFrom::Optimal, CarryFrom::GoodEnough] {
+    for carry in [
+        CarryFrom::Optimal,
+        CarryFrom::GoodEnough,
+        CarryFrom::Reported,
+    ] {
         let cfg = EvalConfig {
             carry,
             ..EvalConfig::default()
@@ -245,10 +249,12 @@ fn the_runtime_pilot_flies_the_replay_frame_by_frame() {
     }
     // both behaviours of the loop were exercised: boxes carried by the trackers, and
     // reported detections that were not carried (the cheap variant's good-enough ones);
-    // carrying from good-enough up carries some of those
-    let [(t_opt, u_opt), (t_ge, u_ge)] = counts[..] else {
+    // carrying from good-enough up carries some of those, and carrying every reported
+    // one (the paper's rule) at least as many
+    let [(t_opt, u_opt), (t_ge, u_ge), (t_rep, u_rep)] = counts[..] else {
         unreachable!()
     };
     assert!(t_opt > 0 && u_opt > 0, "{counts:?}");
     assert!(t_ge > t_opt && u_ge < u_opt, "{counts:?}");
+    assert!(t_rep >= t_ge && u_rep <= u_ge, "{counts:?}");
 }

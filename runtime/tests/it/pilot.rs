@@ -1,11 +1,12 @@
 //! The pilot carries only what it can trust: a detection in its variant's optimal
 //! bucket is tracked; a good-enough one, or one whose tracker cannot start, is
 //! reported on its frame and the next frame is detected again. Carrying from the
-//! good-enough bucket (`Carry::GoodEnough`) moves that line down to `c_ge`.
+//! good-enough bucket (`Carry::GoodEnough`) moves that line down to `c_ge`, and the
+//! paper's rule (`Carry::Reported`) to `T_c`: everything reported is carried.
 
 use frugal_runtime::bundle::write::{BundleWriter, FamilySpec, VariantSpec};
 use frugal_runtime::bundle::{ScoreBuckets, Thresholds};
-use frugal_runtime::pilot::{Carry, Pilot};
+use frugal_runtime::pilot::{Carry, Pilot, TrackStats};
 use frugal_runtime::synth::{ClipSpec, make_clip};
 use frugal_runtime::track::{GrayImage, Pyramid};
 use frugal_runtime::{Access, BBox, Bundle, Decision, Detection, Trigger};
@@ -40,6 +41,16 @@ fn fly(
     found: impl Fn(usize) -> Vec<Detection>,
     blank: Option<(usize, usize, usize, usize)>,
 ) -> Vec<(Decision, Vec<Detection>)> {
+    fly_counted(frames, carry, found, blank).0
+}
+
+/// [`fly`], and the pilot's count of what became of the boxes it was handed.
+fn fly_counted(
+    frames: usize,
+    carry: Carry,
+    found: impl Fn(usize) -> Vec<Detection>,
+    blank: Option<(usize, usize, usize, usize)>,
+) -> (Vec<(Decision, Vec<Detection>)>, TrackStats) {
     let spec = ClipSpec {
         width: 160,
         height: 120,
@@ -78,7 +89,7 @@ fn fly(
         out.push((decision, shown));
         std::mem::swap(&mut prev, &mut cur);
     }
-    out
+    (out, pilot.track_stats())
 }
 
 fn sign(score: f32) -> Detection {
@@ -170,4 +181,53 @@ fn carrying_from_good_enough_tracks_a_good_enough_detection_but_not_a_weaker_one
     let run = fly(10, Carry::GoodEnough, |_| vec![sign(0.55)], None);
     assert_eq!(detections(&run), 10, "{run:?}");
     assert!(run.iter().all(|(_, shown)| shown.len() == 1), "{run:?}");
+}
+
+#[test]
+fn carrying_every_reported_detection_tracks_a_weak_one_but_not_an_unreported_one() {
+    // 0.55 is reported (T_c 0.5) though below c_ge: the paper's rule carries it
+    let (run, stats) = fly_counted(10, Carry::Reported, |_| vec![sign(0.55)], None);
+    assert_eq!(detections(&run), 1, "{run:?}");
+    assert!(run.iter().all(|(_, shown)| shown.len() == 1), "{run:?}");
+    let started = TrackStats {
+        started: 1,
+        ..TrackStats::default()
+    };
+    assert_eq!(stats, started);
+    // 0.45 is below T_c: never reported nor carried, and the controller detects again
+    let (run, stats) = fly_counted(10, Carry::Reported, |_| vec![sign(0.45)], None);
+    assert_eq!(detections(&run), 10, "{run:?}");
+    assert!(run.iter().all(|(_, shown)| shown.is_empty()), "{run:?}");
+    assert_eq!(stats, TrackStats::default());
+}
+
+#[test]
+fn the_pilot_counts_why_a_reported_box_was_not_carried() {
+    // below c_ge under GoodEnough: reported and detected again on each of 10 frames
+    let (_, stats) = fly_counted(10, Carry::GoodEnough, |_| vec![sign(0.55)], None);
+    let not_carried = TrackStats {
+        not_carried: 10,
+        ..TrackStats::default()
+    };
+    assert_eq!(stats, not_carried);
+    // a sign on a flat patch has no corners: its tracker fails to start on each of 5
+    // detection frames, while the textured one beside it starts every time
+    let flat = Detection {
+        bbox: BBox::new(115.0, 15.0, 145.0, 45.0),
+        score: 0.95,
+        class: 4,
+    };
+    let (run, stats) = fly_counted(
+        5,
+        Carry::Optimal,
+        |_| vec![sign(0.95), flat],
+        Some((105, 5, 155, 55)),
+    );
+    assert_eq!(detections(&run), 5, "{run:?}");
+    let failed = TrackStats {
+        started: 5,
+        failed_to_start: 5,
+        ..TrackStats::default()
+    };
+    assert_eq!(stats, failed);
 }
