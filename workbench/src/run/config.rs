@@ -12,7 +12,7 @@ use frugal_data::GenConfig;
 use frugal_models::compress::Grid;
 use frugal_models::config::Config as DetectorConfig;
 use frugal_policies::PolicyConfig;
-use frugal_policies::eval::EvalConfig;
+use frugal_policies::eval::{CarryFrom, EvalConfig};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -105,6 +105,10 @@ pub struct FlightSettings {
     pub threads: usize,
     /// Save the first adaptive flight of each maze as a GIF.
     pub gif: bool,
+    /// Which detections the adaptive runtime carries with its trackers (`frugal fly
+    /// --carry`): `"optimal"` (the default profile's, as its replay evaluation),
+    /// `"good-enough"` or `"reported"` (the paper's rule; the flight config's).
+    pub carry: CarryFrom,
 }
 
 /// The whole pipeline's configuration.
@@ -251,6 +255,7 @@ impl RunConfig {
             time_limit_s: 900.0,
             threads: 1,
             gif: true,
+            carry: CarryFrom::Optimal,
         };
         Ok(match profile {
             Profile::Default => RunConfig {
@@ -625,7 +630,14 @@ mod tests {
             e.contains("flights.device") && e.contains("tx2-like"),
             "{e}"
         );
-        let e = load("[pareto]\nthreads = \"two\"\n")
+        let e = load("[flights]\ncarry = \"everything\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("everything") && e.contains("reported"),
+            "{e}"
+        );
+                let e = load("[pareto]\nthreads = \"two\"\n")
             .unwrap_err()
             .to_string();
         assert!(e.contains("[pareto]"), "{e}");
@@ -666,6 +678,10 @@ mod tests {
             default.policy
         );
         assert_eq!((cfg.policy.alpha, cfg.policy.outcome_min_px), (0.2, 24.0));
+        // its flights carry every reported detection (the paper's rule); the default
+        // profile's carry from the optimal bucket, as its replay evaluation
+        assert_eq!(cfg.flights.carry, CarryFrom::Reported);
+        assert_eq!(default.flights.carry, CarryFrom::Optimal);
         let footage = cfg.replay.footage.clone().unwrap();
         assert_eq!(footage.mazes, ["train-a", "train-b", "train-c"]);
         assert!(footage.mazes.iter().all(|m| !cfg.flights.mazes.contains(m)));

@@ -646,6 +646,10 @@ impl Ctx {
         st.extend(["--variant".into(), arg(&static_dir)]);
         let mut ad = common("adaptive");
         ad.extend(["--bundle".into(), arg(&self.dir("bundle"))]);
+        // the config's kebab-case name is `frugal fly --carry`'s
+        let carry = serde_json::to_value(f.carry)?;
+        let carry = carry.as_str().context("[flights] carry is not a name")?;
+        ad.extend(["--carry".into(), carry.into()]);
         if f.gif {
             ad.push("--gif".into());
         }
