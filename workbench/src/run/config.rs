@@ -633,11 +633,8 @@ mod tests {
         let e = load("[flights]\ncarry = \"everything\"\n")
             .unwrap_err()
             .to_string();
-        assert!(
-            e.contains("everything") && e.contains("reported"),
-            "{e}"
-        );
-                let e = load("[pareto]\nthreads = \"two\"\n")
+        assert!(e.contains("everything") && e.contains("reported"), "{e}");
+        let e = load("[pareto]\nthreads = \"two\"\n")
             .unwrap_err()
             .to_string();
         assert!(e.contains("[pareto]"), "{e}");
