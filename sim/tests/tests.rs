@@ -284,6 +284,17 @@ fn fast_config() -> FlightConfig {
     }
 }
 
+/// [`fast_config`] with a 60 s time limit: a flight that misses its turn ends soon.
+fn within_a_minute() -> FlightConfig {
+    FlightConfig {
+        nav: frugal_sim::NavConfig {
+            time_limit_s: 60.0,
+            ..frugal_sim::NavConfig::default()
+        },
+        ..fast_config()
+    }
+}
+
 #[test]
 fn ground_truth_flights_complete_every_shipped_maze() {
     // the three evaluation mazes and the three training mazes of `sim/mazes/train`
@@ -1119,13 +1130,7 @@ fn a_sign_the_accurate_detector_confirmed_once_and_never_read_again_is_not_acted
         gt: GroundTruthPerception::default(),
         confirmations: 0,
     };
-    let config = FlightConfig {
-        nav: frugal_sim::NavConfig {
-            time_limit_s: 60.0,
-            ..frugal_sim::NavConfig::default()
-        },
-        ..fast_config()
-    };
+    let config = within_a_minute();
     let r = frugal_sim::fly(&maze, &config, &mut perception, 1, None).unwrap();
     let has = |p: &str| r.events.iter().any(|e| e.what.contains(p));
     // the one mirrored confirmation made it a right turn; the readings of nothing
@@ -1139,13 +1144,7 @@ fn a_sign_the_accurate_detector_confirmed_once_and_never_read_again_is_not_acted
 #[test]
 fn boxes_a_tracker_carried_keep_a_sign_in_view_but_never_place_one() {
     let maze = Maze::builtin("easy").unwrap();
-    let config = FlightConfig {
-        nav: frugal_sim::NavConfig {
-            time_limit_s: 60.0,
-            ..frugal_sim::NavConfig::default()
-        },
-        ..fast_config()
-    };
+    let config = within_a_minute();
     // every frame carried: the sign is seen on every frame, yet never measured
     let mut gt = GroundTruthPerception::default();
     let mut carried = |input: &FrameInput<'_>| -> Result<Percept, PerceptionError> {
@@ -1175,13 +1174,7 @@ fn boxes_a_tracker_carried_keep_a_sign_in_view_but_never_place_one() {
 #[test]
 fn a_carried_box_holds_a_sighting_but_adds_no_support_to_it() {
     let maze = Maze::builtin("easy").unwrap();
-    let config = FlightConfig {
-        nav: frugal_sim::NavConfig {
-            time_limit_s: 60.0,
-            ..frugal_sim::NavConfig::default()
-        },
-        ..fast_config()
-    };
+    let config = within_a_minute();
     // ground truth that sees nothing until a sign is within 5 m, measures the first
     // `measured` frames from there and is carried by a tracker on every frame after;
     // ground truth confirms
