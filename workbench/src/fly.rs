@@ -302,3 +302,25 @@ fn fly_maze(
     bar.finish_and_clear();
     Ok(results)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::CarryArg;
+    use clap::ValueEnum;
+    use frugal_policies::eval::CarryFrom;
+
+    /// The run's flights stage passes `[flights] carry` to `frugal fly --carry` by its
+    /// config name: every name must be a value the CLI takes, meaning the same carry.
+    #[test]
+    fn every_run_config_carry_is_a_fly_carry_value() {
+        for (config, cli) in [
+            (CarryFrom::Optimal, CarryArg::Optimal),
+            (CarryFrom::GoodEnough, CarryArg::GoodEnough),
+            (CarryFrom::Reported, CarryArg::Reported),
+        ] {
+            let name = serde_json::to_value(config).unwrap();
+            let name = name.as_str().unwrap();
+            assert_eq!(CarryArg::from_str(name, false), Ok(cli), "{name}");
+        }
+    }
+}
