@@ -4,6 +4,7 @@
 use anyhow::Context;
 use clap::{Args, ValueEnum};
 use frugal_data::Source;
+use frugal_policies::eval::CarryFrom;
 use frugal_sim::report::{self, GifRecorder, Summary};
 use frugal_sim::{
     CameraSpec, DeviceProfile, FlightConfig, FlightResult, FootageRecorder, FrameView,
@@ -38,8 +39,10 @@ pub struct FlyArgs {
     /// optimal bucket up (the default, as the replay evaluation), from the
     /// good-enough bucket up, or every reported one (the paper's rule). The flight
     /// confirms a sign before acting on it and never places one from a carried box.
-    #[arg(long, value_enum, default_value_t = CarryArg::Optimal)]
-    pub carry: CarryArg,
+    /// The names are the run config's `[flights] carry` (possible values: optimal,
+    /// good-enough, reported).
+    #[arg(long, default_value = "optimal", value_parser = parse_carry)]
+    pub carry: CarryFrom,
     /// ONNX Runtime intra-op threads for detector-based perception.
     #[arg(long, default_value_t = 1)]
     pub threads: usize,
@@ -88,15 +91,10 @@ pub struct FlyArgs {
     pub quiet: bool,
 }
 
-/// `--carry` choices (the runtime's `Carry`).
-#[derive(ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
-pub enum CarryArg {
-    /// From the variant's `c_opt` up.
-    Optimal,
-    /// From the variant's `c_ge` up.
-    GoodEnough,
-    /// Every reported detection: from the family's `T_c` up (the paper's rule).
-    Reported,
+/// `--carry NAME`: the run config's name of a carry (`[flights] carry`), so that the
+/// flights stage passes it through as it is.
+fn parse_carry(name: &str) -> Result<CarryFrom, String> {
+    serde_json::from_value(serde_json::Value::String(name.into())).map_err(|e| e.to_string())
 }
 
 /// Perception choices.
@@ -135,11 +133,7 @@ fn perception(args: &FlyArgs) -> anyhow::Result<Box<dyn Perception>> {
             Box::new(
                 frugal_sim::AdaptivePerception::open(dir, args.threads)
                     .map_err(|e| anyhow::anyhow!("{e}"))?
-                    .with_carry(match args.carry {
-                        CarryArg::Optimal => frugal_runtime::pilot::Carry::Optimal,
-                        CarryArg::GoodEnough => frugal_runtime::pilot::Carry::GoodEnough,
-                        CarryArg::Reported => frugal_runtime::pilot::Carry::Reported,
-                    }),
+                    .with_carry(args.carry.into()),
             )
         }
     })
@@ -164,7 +158,7 @@ pub fn run(args: FlyArgs) -> anyhow::Result<()> {
     }
     anyhow::ensure!(args.seeds >= 1, "--seeds must be at least 1");
     anyhow::ensure!(
-        args.carry == CarryArg::Optimal || args.perception == PerceptionKind::Adaptive,
+        args.carry == CarryFrom::Optimal || args.perception == PerceptionKind::Adaptive,
         "--carry other than optimal applies to the adaptive runtime's trackers (--perception adaptive)"
     );
     anyhow::ensure!(
@@ -305,22 +299,20 @@ fn fly_maze(
 
 #[cfg(test)]
 mod tests {
-    use super::CarryArg;
-    use clap::ValueEnum;
     use frugal_policies::eval::CarryFrom;
 
     /// The run's flights stage passes `[flights] carry` to `frugal fly --carry` by its
     /// config name: every name must be a value the CLI takes, meaning the same carry.
     #[test]
     fn every_run_config_carry_is_a_fly_carry_value() {
-        for (config, cli) in [
-            (CarryFrom::Optimal, CarryArg::Optimal),
-            (CarryFrom::GoodEnough, CarryArg::GoodEnough),
-            (CarryFrom::Reported, CarryArg::Reported),
+        for carry in [
+            CarryFrom::Optimal,
+            CarryFrom::GoodEnough,
+            CarryFrom::Reported,
         ] {
-            let name = serde_json::to_value(config).unwrap();
+            let name = serde_json::to_value(carry).unwrap();
             let name = name.as_str().unwrap();
-            assert_eq!(CarryArg::from_str(name, false), Ok(cli), "{name}");
+            assert_eq!(super::parse_carry(name), Ok(carry), "{name}");
         }
     }
 }
