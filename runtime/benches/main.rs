@@ -1,6 +1,8 @@
 //! Criterion benchmarks of the per-frame path.
 //!
 //! - `controller/step`: one decision of [`Controller::step`] (budget ≤ 100 ns median);
+//! - `schedule/step+shown`: one decision of [`Scheduler::step`] with its features: the
+//!   score hand-over on a detection frame and [`Scheduler::shown`] (budget ≤ 50 ns);
 //! - `pyramid/build_480x270_3`: building a 3-level pyramid of a 480×270 frame;
 //! - `tracker/frame_480x270_64pts`: one tracked frame — next pyramid build + LK
 //!   forward and backward for ≤ 64 points + median-flow box update (budget ≤ 1 ms);
@@ -15,11 +17,17 @@
 
 use criterion::measurement::{Measurement, ValueFormatter, WallTime};
 use criterion::{Criterion, criterion_group, criterion_main};
-use frugal_runtime::bundle::write::{BundleWriter, FamilySpec, VariantSpec};
-use frugal_runtime::bundle::{ScoreBuckets, Thresholds};
+use frugal_runtime::bundle::write::{
+    BudgetSpec, BundleWriter, FamilySpec, ScheduleSpec, VariantSpec,
+};
+use frugal_runtime::bundle::{BUCKET_COUNT, ScoreBuckets, Thresholds};
+use frugal_runtime::schedule::CONTENT_STATES;
 use frugal_runtime::synth::{ClipSpec, make_clip};
 use frugal_runtime::track::{GrayImage, Pyramid, Tracker, TrackerParams};
-use frugal_runtime::{BBox, Bundle, Controller, Observation, TrackStatus};
+use frugal_runtime::{
+    BBox, BudgetInfo, Bundle, ContentEdges, Controller, Decision, Observation, ScheduleAction,
+    Scheduler, TrackState, TrackStatus,
+};
 use std::hint::black_box;
 
 /// The calling thread's CPU time, in nanoseconds.
@@ -62,6 +70,44 @@ impl Measurement for ThreadCpuTime {
 }
 
 fn bundle_bytes() -> Vec<u8> {
+    bundle_writer().finish().expect("valid bundle")
+}
+
+/// [`bundle_bytes`] with four budget schedules over periods 1, 2, 5 and 10.
+fn scheduled_bundle_bytes() -> Vec<u8> {
+    let periods = [1, 2, 5, 10];
+    let states = BUCKET_COUNT * 8 * CONTENT_STATES;
+    let budgets = (0..4)
+        .map(|k| BudgetSpec {
+            info: BudgetInfo {
+                budget_ms: 10.0 * (k + 1) as f32,
+                slowdown: 1.0,
+                expected_ms: 5.0,
+                p95_ms: 9.0,
+            },
+            actions: (0..states)
+                .map(|i| ScheduleAction {
+                    variant: ((i * 5 + k) % 8) as u16,
+                    period: periods[(i / 3 + k) % 4],
+                })
+                .collect(),
+        })
+        .collect();
+    bundle_writer()
+        .schedules(ScheduleSpec {
+            edges: ContentEdges::DEFAULT,
+            periods: periods.to_vec(),
+            initial: ScheduleAction {
+                variant: 0,
+                period: 1,
+            },
+            budgets,
+        })
+        .finish()
+        .expect("valid bundle")
+}
+
+fn bundle_writer() -> BundleWriter {
     let mut w = BundleWriter::new(Thresholds::PAPER)
         .family(FamilySpec {
             name: "cnn".into(),
@@ -85,7 +131,7 @@ fn bundle_bytes() -> Vec<u8> {
         ));
     }
     let actions = (0..4 * 8).map(|i| ((i * 5 + 3) % 8) as u16).collect();
-    w.policy(0, actions).finish().expect("valid bundle")
+    w.policy(0, actions)
 }
 
 fn controller<M: Measurement + 'static>(c: &mut Criterion<M>, suffix: &str) {
@@ -109,6 +155,54 @@ fn controller<M: Measurement + 'static>(c: &mut Criterion<M>, suffix: &str) {
         b.iter(|| {
             i = (i + 1) % obs.len();
             black_box(ctl.step(black_box(&obs[i])))
+        })
+    });
+}
+
+/// One frame of the scheduler's input: the trackers' state, the detection's best score
+/// (used on a detection frame), and what the frame shows.
+struct ScheduleInput {
+    frame: u32,
+    track: TrackState,
+    score: Option<f32>,
+    count: usize,
+    largest: Option<BBox>,
+}
+
+fn schedule<M: Measurement + 'static>(c: &mut Criterion<M>, suffix: &str) {
+    let bytes = scheduled_bundle_bytes();
+    let bundle = Bundle::parse(&bytes).expect("parse");
+    let mut s = Scheduler::new(bundle, 0).expect("schedules");
+    // A repeating pattern that exercises every trigger, bucket and content state.
+    let inputs: Vec<ScheduleInput> = (0..1000u32)
+        .map(|f| {
+            let count = (f % 7) as usize % 4;
+            let x = ((f * 3) % 200) as f32;
+            let h = ((f * 13) % 90) as f32 + 4.0;
+            ScheduleInput {
+                frame: f,
+                track: match f % 23 {
+                    0 => TrackState::Lost,
+                    1..=4 => TrackState::Idle,
+                    _ => TrackState::Held,
+                },
+                score: (f % 9 != 0).then_some(((f * 37) % 100) as f32 / 100.0),
+                count,
+                largest: (count > 0).then_some(BBox::new(x, 20.0, x + h, 20.0 + h)),
+            }
+        })
+        .collect();
+    let mut i = 0usize;
+    c.bench_function(&format!("schedule/step+shown{suffix}"), |b| {
+        b.iter(|| {
+            i = (i + 1) % inputs.len();
+            let input = black_box(&inputs[i]);
+            let decision = s.step(input.frame, input.track);
+            if let Decision::Detect { .. } = decision {
+                s.detected(input.score);
+            }
+            s.shown(input.frame, input.count, input.largest);
+            black_box(decision)
         })
     });
 }
@@ -159,11 +253,13 @@ fn tracker<M: Measurement + 'static>(c: &mut Criterion<M>, suffix: &str) {
 
 fn wall(c: &mut Criterion) {
     controller(c, "");
+    schedule(c, "");
     tracker(c, "");
 }
 
 fn cpu(c: &mut Criterion<ThreadCpuTime>) {
     controller(c, "/cpu");
+    schedule(c, "/cpu");
     tracker(c, "/cpu");
 }
 

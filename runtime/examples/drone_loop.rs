@@ -138,7 +138,7 @@ fn main() -> Result<(), Error> {
             println!("  {:<24} {count:>5} detections", info.name);
         }
     }
-    let stats = pilot.controller().stats();
+    let stats = pilot.stats();
     println!(
         "  {} frames tracked, {} policy queries",
         tracked, stats.queries

@@ -10,8 +10,11 @@
 //!   `bundle::write::BundleWriter`;
 //! - [`controller`]: [`Controller::step`] turns an [`Observation`] into a [`Decision`]
 //!   (detect with variant `k`, or track);
-//! - [`pilot`]: the whole per-frame loop, controller plus one tracker per detected
-//!   sign ([`pilot::Pilot`]);
+//! - [`schedule`]: the budget policy with a content state: [`Scheduler::step`] picks a
+//!   variant and a detection period from the bundle's table for the current latency
+//!   budget, switchable in flight ([`Scheduler::set_budget`]);
+//! - [`pilot`]: the whole per-frame loop, controller (or scheduler) plus one tracker
+//!   per detected sign ([`pilot::Pilot`]);
 //! - [`track`]: the KLT [`Tracker`] (Shi-Tomasi + pyramidal Lucas-Kanade + median flow);
 //! - [`geom`]: boxes, detections, frames, the [`Detector`] trait.
 //!
@@ -62,11 +65,15 @@ pub mod geom;
 #[cfg(feature = "onnx")]
 pub mod onnx;
 pub mod pilot;
+pub mod schedule;
 #[cfg(feature = "std")]
 pub mod synth;
 pub mod track;
 
-pub use bundle::{Bundle, BundleError, Thresholds};
+pub use bundle::{Bundle, BundleError, Schedules, Thresholds};
 pub use controller::{Access, Controller, Decision, Observation, TrackStatus, Trigger};
 pub use geom::{BBox, ClassId, Detection, Detector, FrameRef, VariantId};
+pub use schedule::{
+    BudgetInfo, Content, ContentEdges, ScheduleAction, ScheduleError, Scheduler, TrackState,
+};
 pub use track::{Tracker, TrackerParams};

@@ -21,6 +21,14 @@
 //! 3. on [`Decision::Track`], [`Pilot::tracked`] gives the tracked boxes with the
 //!    class and score of the detection each one started from.
 //!
+//! [`Pilot::scheduled`] runs a [`Scheduler`] (the bundle's budget schedules) in place
+//! of the controller, over the same trackers: every reported detection is carried
+//! ([`Carry::Reported`]), the scheduler is told [`TrackState::Lost`] when the pilot
+//! held tracks before a frame and none survives it, each image gets one detection
+//! ([`Pilot::detected`] answers [`Access::Done`]), and the pilot reports to
+//! [`Scheduler::shown`] what each frame shows: the reported detections on a detection
+//! frame, the tracked boxes on a tracked one.
+//!
 //! ```
 //! use frugal_runtime::bundle::write::{BundleWriter, FamilySpec, VariantSpec};
 //! use frugal_runtime::bundle::{ScoreBuckets, Thresholds};
@@ -46,8 +54,9 @@
 //! ```
 
 use crate::bundle::{Bundle, ScoreBuckets};
-use crate::controller::{Access, Controller, Decision, Observation, TrackStatus};
+use crate::controller::{Access, Controller, Decision, Observation, Stats, TrackStatus};
 use crate::geom::{BBox, Detection, VariantId};
+use crate::schedule::{ScheduleError, Scheduler, TrackState, largest_box};
 use crate::track::{Pyramid, Tracker, TrackerParams};
 
 /// Which reported detections the [`Pilot`] carries with a tracker between detections.
@@ -106,11 +115,36 @@ struct Held<const POINTS: usize> {
     detection: Detection,
 }
 
-/// The per-frame loop: a [`Controller`] plus up to `TRACKS` trackers of up to
-/// `POINTS` points each.
+/// What decides the frames: the bundle's policy or its budget schedules.
+#[derive(Clone, Copy, Debug)]
+enum Engine<'b> {
+    Controller(Controller<'b>),
+    Scheduler(Scheduler<'b>),
+}
+
+impl<'b> Engine<'b> {
+    const fn bundle(&self) -> &Bundle<'b> {
+        match self {
+            Engine::Controller(c) => c.bundle(),
+            Engine::Scheduler(s) => s.bundle(),
+        }
+    }
+
+    const fn current_variant(&self) -> VariantId {
+        match self {
+            Engine::Controller(c) => c.current_variant(),
+            Engine::Scheduler(s) => s.current_variant(),
+        }
+    }
+}
+
+/// The per-frame loop: a [`Controller`] (or a [`Scheduler`]) plus up to `TRACKS`
+/// trackers of up to `POINTS` points each.
 #[derive(Clone, Debug)]
 pub struct Pilot<'b, const TRACKS: usize, const POINTS: usize> {
-    controller: Controller<'b>,
+    engine: Engine<'b>,
+    /// The frame of the last [`Pilot::decide`].
+    frame: u32,
     held: [Held<POINTS>; TRACKS],
     active: usize,
     limit: usize,
@@ -121,10 +155,25 @@ pub struct Pilot<'b, const TRACKS: usize, const POINTS: usize> {
 }
 
 impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
-    /// A pilot over `bundle`, with the default tracker parameters.
+    /// A pilot over `bundle`'s policy, with the default tracker parameters.
     pub const fn new(bundle: Bundle<'b>) -> Self {
+        Self::with_engine(Engine::Controller(Controller::new(bundle)), Carry::Optimal)
+    }
+
+    /// A pilot over `bundle`'s budget schedules, on budget table `budget`, with the
+    /// default tracker parameters. It carries every reported detection
+    /// ([`Carry::Reported`]) and runs one detection per image.
+    pub const fn scheduled(bundle: Bundle<'b>, budget: usize) -> Result<Self, ScheduleError> {
+        match Scheduler::new(bundle, budget) {
+            Ok(s) => Ok(Self::with_engine(Engine::Scheduler(s), Carry::Reported)),
+            Err(e) => Err(e),
+        }
+    }
+
+    const fn with_engine(engine: Engine<'b>, carry: Carry) -> Self {
         Self {
-            controller: Controller::new(bundle),
+            engine,
+            frame: 0,
             held: [const {
                 Held {
                     tracker: Tracker::new(TrackerParams::DEFAULT),
@@ -137,7 +186,7 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
             }; TRACKS],
             active: 0,
             limit: TRACKS,
-            carry: Carry::Optimal,
+            carry,
             untracked: false,
             stats: TrackStats {
                 started: 0,
@@ -167,16 +216,60 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
 
     /// A pilot with given tracker parameters.
     pub fn with_params(bundle: Bundle<'b>, params: TrackerParams) -> Self {
-        let mut pilot = Self::new(bundle);
-        for h in &mut pilot.held {
-            h.tracker = Tracker::new(params);
-        }
-        pilot
+        Self::new(bundle).with_tracker_params(params)
     }
 
-    /// The controller (current variant, counters, bundle).
-    pub const fn controller(&self) -> &Controller<'b> {
-        &self.controller
+    /// The same pilot with tracker parameters `params`.
+    pub fn with_tracker_params(mut self, params: TrackerParams) -> Self {
+        for h in &mut self.held {
+            h.tracker = Tracker::new(params);
+        }
+        self
+    }
+
+    /// The controller (current variant, counters, bundle); `None` for a pilot over a
+    /// scheduler ([`Pilot::scheduled`]).
+    pub const fn controller(&self) -> Option<&Controller<'b>> {
+        match &self.engine {
+            Engine::Controller(c) => Some(c),
+            Engine::Scheduler(_) => None,
+        }
+    }
+
+    /// The scheduler (current variant and period, budget, content state, counters);
+    /// `None` for a pilot over the controller ([`Pilot::new`]).
+    pub const fn scheduler(&self) -> Option<&Scheduler<'b>> {
+        match &self.engine {
+            Engine::Controller(_) => None,
+            Engine::Scheduler(s) => Some(s),
+        }
+    }
+
+    /// Switches a scheduled pilot to budget table `budget` from its next detection;
+    /// [`ScheduleError::NoSchedules`] for a pilot over the controller.
+    pub const fn set_budget(&mut self, budget: usize) -> Result<(), ScheduleError> {
+        match &mut self.engine {
+            Engine::Controller(_) => Err(ScheduleError::NoSchedules),
+            Engine::Scheduler(s) => s.set_budget(budget),
+        }
+    }
+
+    /// The bundle the pilot flies.
+    pub const fn bundle(&self) -> &Bundle<'b> {
+        self.engine.bundle()
+    }
+
+    /// The variant currently run.
+    pub const fn current_variant(&self) -> VariantId {
+        self.engine.current_variant()
+    }
+
+    /// The controller's or scheduler's counters.
+    pub const fn stats(&self) -> Stats {
+        match &self.engine {
+            Engine::Controller(c) => c.stats(),
+            Engine::Scheduler(s) => s.stats(),
+        }
     }
 
     /// What became of the boxes handed over so far.
@@ -190,13 +283,18 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
     }
 
     /// Track the held boxes from `prev` into `cur` (skipped when `prev` is `None`) and
-    /// ask the controller what to do with frame `frame`.
+    /// ask the controller (or scheduler) what to do with frame `frame`. A scheduled
+    /// pilot that held tracks and has no `prev`, or whose tracks all ended, tells the
+    /// scheduler [`TrackState::Lost`]; on [`Decision::Track`] it reports the tracked
+    /// boxes to [`Scheduler::shown`].
     pub fn decide(
         &mut self,
         frame: u32,
         prev: Option<&Pyramid<'_>>,
         cur: &Pyramid<'_>,
     ) -> Decision {
+        self.frame = frame;
+        let held_before = self.active > 0;
         let mut status: Option<TrackStatus> = None;
         if let Some(prev) = prev {
             let mut worst = (f32::INFINITY, f32::INFINITY);
@@ -231,27 +329,52 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
                 s.quality = if self.untracked { 0.0 } else { worst.1 };
             }
         }
-        // the score went to the controller in `detected`
-        self.controller.step(&Observation {
-            frame,
-            score: None,
-            track: status,
-        })
+        match &mut self.engine {
+            // the score went to the controller in `detected`
+            Engine::Controller(c) => c.step(&Observation {
+                frame,
+                score: None,
+                track: status,
+            }),
+            Engine::Scheduler(s) => {
+                // without `prev` the held boxes could not follow into this frame
+                let track = if prev.is_some() && self.active > 0 {
+                    TrackState::Held
+                } else if held_before {
+                    TrackState::Lost
+                } else {
+                    TrackState::Idle
+                };
+                let decision = s.step(frame, track);
+                if decision == Decision::Track {
+                    let held = self.held.iter().take(self.active);
+                    s.shown(
+                        frame,
+                        self.active,
+                        largest_box(held.map(|h| h.tracker.bbox())),
+                    );
+                }
+                decision
+            }
+        }
     }
 
     /// The score at which the current variant's detections are reported: its
     /// family's `T_c`.
     pub fn report_score(&self) -> f32 {
-        self.controller.t_c().unwrap_or(f32::NEG_INFINITY)
+        self.engine
+            .bundle()
+            .variant_buckets(self.engine.current_variant())
+            .map_or(f32::NEG_INFINITY, |b| b.t_c)
     }
 
     /// The score at which the current variant's detections are tracked: the lower edge
     /// of its family's optimal bucket, `c_opt` (good-enough bucket, `c_ge`, under
     /// [`Carry::GoodEnough`]; `T_c` under [`Carry::Reported`]).
     pub fn track_score(&self) -> f32 {
-        let ctl = &self.controller;
-        ctl.bundle()
-            .variant_buckets(ctl.current_variant())
+        self.engine
+            .bundle()
+            .variant_buckets(self.engine.current_variant())
             .map_or(f32::INFINITY, |b| self.carry.edge(&b))
     }
 
@@ -263,7 +386,8 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
     /// the controller, whose answer is returned: [`Access::Again`] asks for another
     /// variant on the same frame. A reported box that is not tracked (below
     /// `track_score`, or its tracker cannot start) makes the next [`Pilot::decide`]
-    /// detect again.
+    /// detect again. A scheduled pilot answers [`Access::Done`] and reports the
+    /// reported boxes to [`Scheduler::shown`].
     pub fn detected(&mut self, cur: &Pyramid<'_>, detections: &[Detection]) -> Access {
         self.active = 0;
         self.untracked = false;
@@ -292,8 +416,20 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
                 self.stats.failed_to_start = self.stats.failed_to_start.wrapping_add(1);
             }
         }
-        self.controller
-            .detected(detections.first().map(|d| d.score))
+        let best = detections.first().map(|d| d.score);
+        match &mut self.engine {
+            Engine::Controller(c) => c.detected(best),
+            Engine::Scheduler(s) => {
+                s.detected(best);
+                let reported = detections.iter().filter(|d| d.score >= t_c);
+                s.shown(
+                    self.frame,
+                    reported.clone().count(),
+                    largest_box(reported.map(|d| d.bbox)),
+                );
+                Access::Done
+            }
+        }
     }
 
     /// The whole detection of one frame: `run` the variant of [`Decision::Detect`]

@@ -1,13 +1,20 @@
 //! Proof that the per-frame path allocates nothing: a counting global allocator around
-//! 10,000 frames of bundle parsing, controller decisions, pyramid builds and tracking.
+//! 10,000 frames of bundle parsing, controller decisions, pyramid builds and tracking,
+//! and 10,000 frames each of scheduler decisions and of the scheduled pilot.
 #![allow(unsafe_code)] // a global allocator needs `unsafe impl GlobalAlloc`
 
-use frugal_runtime::bundle::write::{BundleWriter, FamilySpec, VariantSpec};
-use frugal_runtime::bundle::{ScoreBuckets, Thresholds};
+use frugal_runtime::bundle::write::{
+    BudgetSpec, BundleWriter, FamilySpec, ScheduleSpec, VariantSpec,
+};
+use frugal_runtime::bundle::{BUCKET_COUNT, ScoreBuckets, Thresholds};
 use frugal_runtime::pilot::Pilot;
+use frugal_runtime::schedule::{CONTENT_STATES, largest_box};
 use frugal_runtime::synth::{ClipSpec, make_clip};
 use frugal_runtime::track::{GrayImage, Pyramid, Tracker, TrackerParams};
-use frugal_runtime::{Bundle, Controller, Decision, Detection, Observation, TrackStatus};
+use frugal_runtime::{
+    BudgetInfo, Bundle, ContentEdges, Controller, Decision, Detection, Observation, ScheduleAction,
+    Scheduler, TrackState, TrackStatus,
+};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -53,6 +60,10 @@ static GLOBAL: Counting = Counting;
 
 /// A bundle with two CNN-scale variants; the policy moves to the costly one on a poor score.
 fn two_variant_bundle() -> Vec<u8> {
+    two_variant_writer().finish().unwrap()
+}
+
+fn two_variant_writer() -> BundleWriter {
     BundleWriter::new(Thresholds::PAPER)
         .family(FamilySpec {
             name: "cnn".into(),
@@ -66,6 +77,39 @@ fn two_variant_bundle() -> Vec<u8> {
         .variant(VariantSpec::new("small", 0, 1.0, 2.0))
         .variant(VariantSpec::new("full", 0, 4.0, 8.0))
         .policy(0, vec![0, 0, 0, 1, 1, 1, 1, 1])
+}
+
+/// The same with three budget schedules over periods 1, 2, 5 and 10, whose actions
+/// vary with the state.
+fn scheduled_bundle() -> Vec<u8> {
+    let periods = [1, 2, 5, 10];
+    let states = BUCKET_COUNT * 2 * CONTENT_STATES;
+    let budgets = (0..3)
+        .map(|k| BudgetSpec {
+            info: BudgetInfo {
+                budget_ms: 10.0 * (k + 1) as f32,
+                slowdown: 1.0,
+                expected_ms: 5.0,
+                p95_ms: 9.0,
+            },
+            actions: (0..states)
+                .map(|i| ScheduleAction {
+                    variant: ((i / 7 + k) % 2) as u16,
+                    period: periods[(i + k) % 4],
+                })
+                .collect(),
+        })
+        .collect();
+    two_variant_writer()
+        .schedules(ScheduleSpec {
+            edges: ContentEdges::DEFAULT,
+            periods: periods.to_vec(),
+            initial: ScheduleAction {
+                variant: 1,
+                period: 1,
+            },
+            budgets,
+        })
         .finish()
         .unwrap()
 }
@@ -235,5 +279,123 @@ fn the_pilot_loop_allocates_nothing_and_follows_two_signs() {
     assert!(
         worst_iou > 0.6,
         "the tracked sign drifted to IoU {worst_iou}"
+    );
+}
+
+#[test]
+fn ten_thousand_scheduler_decisions_allocate_nothing() {
+    let bytes = scheduled_bundle();
+    COUNTING.with(|c| c.set(true));
+    let bundle = Bundle::parse(&bytes).unwrap();
+    let mut s = Scheduler::new(bundle, 0).unwrap();
+    let (mut detections, mut lost) = (0u32, 0u32);
+    for frame in 0..10_000u32 {
+        if frame % 1_000 == 0 {
+            s.set_budget((frame / 1_000) as usize % 3).unwrap();
+        }
+        let track = match frame % 17 {
+            0 => TrackState::Lost,
+            1..=3 => TrackState::Idle,
+            _ => TrackState::Held,
+        };
+        let x = (frame % 50) as f32 * (1.0 + (frame % 3) as f32);
+        let boxes = [
+            frugal_runtime::BBox::new(x, 10.0, x + 20.0, 10.0 + (frame % 90) as f32),
+            frugal_runtime::BBox::new(5.0, 5.0, 30.0, 40.0),
+        ];
+        let shown = (frame % 4) as usize % 3;
+        match s.step(frame, track) {
+            Decision::Detect { reason, .. } => {
+                detections += 1;
+                lost += u32::from(reason == frugal_runtime::Trigger::TrackerLost);
+                let score = (frame % 5 != 0).then_some((frame % 100) as f32 / 100.0);
+                s.detected(score);
+            }
+            Decision::Track => {}
+        }
+        s.shown(frame, shown, largest_box(boxes.into_iter().take(shown)));
+    }
+    COUNTING.with(|c| c.set(false));
+    let allocations = ALLOCATIONS.load(Ordering::SeqCst);
+    assert_eq!(
+        allocations, 0,
+        "{allocations} allocations in 10,000 scheduler frames"
+    );
+    assert_eq!(s.stats().frames, 10_000);
+    assert!(
+        detections > 1_000 && detections < 9_000 && lost > 500,
+        "{detections} detections, {lost} on lost tracks"
+    );
+}
+
+#[test]
+fn ten_thousand_scheduled_pilot_frames_allocate_nothing() {
+    let bytes = scheduled_bundle();
+    let spec = ClipSpec {
+        width: 96,
+        height: 72,
+        sign_size: 24.0,
+        growth: 1.0,
+        velocity: (1.0, 0.5),
+        ..ClipSpec::standard(5, 24)
+    };
+    let clip = make_clip(&spec);
+    let (w, h) = (clip.width, clip.height);
+    let need = Pyramid::required_len(w, h, 3).unwrap();
+    let (mut wa, mut wb) = (vec![0u8; need], vec![0u8; need]);
+    let mut params = TrackerParams::DEFAULT;
+    params.lk.win_radius = 4;
+
+    COUNTING.with(|c| c.set(true));
+    let bundle = Bundle::parse(&bytes).unwrap();
+    let mut pilot: Pilot<'_, 2, 8> = Pilot::scheduled(bundle, 0)
+        .unwrap()
+        .with_tracker_params(params);
+    let mut prev = Pyramid::new(&mut wa, w, h, 3).unwrap();
+    let mut next = Pyramid::new(&mut wb, w, h, 3).unwrap();
+    let (mut detections, mut tracked_frames) = (0u32, 0u32);
+    for frame in 0..10_000u32 {
+        if frame % 2_500 == 0 {
+            pilot.set_budget((frame / 2_500) as usize % 3).unwrap();
+        }
+        // forward through the clip, then start over (a cut: the held tracks are lost)
+        let i = frame as usize % clip.frames.len();
+        next.build(&GrayImage::new(&clip.frames[i], w, h, w).unwrap())
+            .unwrap();
+        let have_prev = frame > 0 && i > 0;
+        match pilot.decide(frame, have_prev.then_some(&prev), &next) {
+            Decision::Detect { .. } => {
+                detections += 1;
+                let found = [
+                    Detection {
+                        bbox: clip.boxes[i],
+                        score: 0.4 + (frame % 6) as f32 / 10.0,
+                        class: 3,
+                    },
+                    Detection {
+                        bbox: frugal_runtime::BBox::new(4.0, 4.0, 20.0, 20.0),
+                        score: 0.7,
+                        class: 5,
+                    },
+                ];
+                let _ = pilot.detected(&next, &found[..(frame % 3) as usize]);
+            }
+            Decision::Track => {
+                tracked_frames += 1;
+                assert!(pilot.tracked().count() <= 2);
+            }
+        }
+        std::mem::swap(&mut prev, &mut next);
+    }
+    COUNTING.with(|c| c.set(false));
+    let allocations = ALLOCATIONS.load(Ordering::SeqCst);
+    assert_eq!(
+        allocations, 0,
+        "{allocations} allocations in 10,000 scheduled pilot frames"
+    );
+    assert_eq!(pilot.stats().frames, 10_000);
+    assert!(
+        tracked_frames > 2_000 && detections > 1_000,
+        "tracked {tracked_frames}, detections {detections}"
     );
 }

@@ -5,10 +5,17 @@
 //! assume any alignment, checks every offset, length, count and index once, and returns
 //! a typed [`BundleError`] for corrupt, truncated, wrong-version or wrong-endian input.
 //! After a successful parse every per-frame lookup ([`Policy::action`],
-//! [`Bundle::variant_family`], [`Bundle::family_buckets`]) is O(1) and cannot fail for
-//! in-range indices. The writer lives in `bundle::write` (feature `std`).
+//! [`Schedules::action`], [`Bundle::variant_family`], [`Bundle::family_buckets`]) is
+//! O(1) and cannot fail for in-range indices. The writer lives in `bundle::write`
+//! (feature `std`).
 //!
-//! # Format, version 3 (this table is the specification)
+//! # Format, version 4 (this table is the specification)
+//!
+//! Version 4 added the optional schedules section (kind 6). The reader also reads
+//! version 3, which is version 4 without that section: in a version-3 file a kind-6
+//! section is an unknown kind and is skipped, as a version-3 reader would. An old
+//! bundle is read, never misread; any other version is
+//! [`BundleError::UnsupportedVersion`].
 //!
 //! All integers and floats are **little-endian**; `f32` is IEEE-754 binary32. Offsets
 //! are in bytes. Nothing is assumed about alignment when reading; the writer starts
@@ -19,7 +26,7 @@
 //! | offset | size | type | field |
 //! |-------:|-----:|------|-------|
 //! | 0  | 4 | u32 | magic `0x4250_5246` — the bytes `"FRPB"`; the byte-swapped value (`"BPRF"`) means a big-endian writer: [`BundleError::WrongEndian`] |
-//! | 4  | 2 | u16 | format version, [`FORMAT_VERSION`] = 3 |
+//! | 4  | 2 | u16 | format version, [`FORMAT_VERSION`] = 4 (the reader also takes [`MIN_FORMAT_VERSION`] = 3) |
 //! | 6  | 2 | u16 | section count `n`, 1 ..= [`MAX_SECTIONS`] |
 //! | 8  | 4 | u32 | total file length in bytes (must equal the input length) |
 //! | 12 | 4 | u32 | CRC-32 (IEEE, as zlib) of the whole file with these 4 bytes taken as zero |
@@ -28,12 +35,12 @@
 //!
 //! | offset | size | type | field |
 //! |-------:|-----:|------|-------|
-//! | 0  | 4 | u32 | kind: 1 thresholds, 2 families, 3 variants, 4 policy, 5 metadata; other kinds are skipped (their checksum is still checked) |
+//! | 0  | 4 | u32 | kind: 1 thresholds, 2 families, 3 variants, 4 policy, 5 metadata, 6 schedules (version 4); other kinds are skipped (their checksum is still checked) |
 //! | 4  | 4 | u32 | offset of the section body from the start of the file, `>= 16 + 16 n` |
 //! | 8  | 4 | u32 | length of the body in bytes (`offset + length <= file length`) |
 //! | 12 | 4 | u32 | CRC-32 of the body |
 //!
-//! Kinds 1–5 must each appear exactly once.
+//! Kinds 1–5 must each appear exactly once; kind 6 at most once.
 //!
 //! ## Strings
 //!
@@ -97,19 +104,51 @@
 //! | 4 + 8 i | 4 | u32 | key (string in the pool) |
 //! | 8 + 8 i | 4 | u32 | value (string in the pool) |
 //! | 4 + 8 K | … | | string pool |
+//!
+//! ## 6 — Schedules (optional, version 4): per-budget tables of (variant, period), see [`Schedules`] and [`crate::schedule`]
+//!
+//! | offset | size | type | field |
+//! |-------:|-----:|------|-------|
+//! | 0  | 2 | u16 | size bucket count, must be [`SIZE_BUCKETS`] = 3 |
+//! | 2  | 2 | u16 | motion bucket count, must be [`MOTION_BUCKETS`] = 3 |
+//! | 4  | 2 | u16 | count bucket count, must be [`COUNT_BUCKETS`] = 3 |
+//! | 6  | 2 | u16 | period count `P`, 1 ..= [`MAX_PERIODS`] = 4 |
+//! | 8  | 8 | 2 × f32 | size edges in pixels of height, finite, `0 <= e0 <= e1` ([`ContentEdges::size_px`]) |
+//! | 16 | 8 | 2 × f32 | motion edges in pixels per frame, finite, `0 <= e0 <= e1` ([`ContentEdges::motion_px`]) |
+//! | 24 | 8 | 4 × u16 | periods in frames: the first `P` strictly ascending in 1 ..= 255, the rest 0 |
+//! | 32 | 2 | u16 | budget count `K`, 1 ..= [`MAX_BUDGETS`] = 8 |
+//! | 34 | 2 | u16 | initial action `< V · P` (run on the first frame) |
+//! | 36 + 16 k | 4 | f32 | budget `k`: latency budget in ms, finite, `> 0` ([`BudgetInfo`]) |
+//! | 40 + 16 k | 4 | f32 | slowdown of the target versus the measuring machine, finite, `> 0` |
+//! | 44 + 16 k | 4 | f32 | expected latency per frame in ms, finite, `>= 0` |
+//! | 48 + 16 k | 4 | f32 | 95th percentile latency per frame in ms, finite, `>= 0` |
+//! | 36 + 16 K + 2 (k S + s) | 2 | u16 | budget `k`'s action for state `s`, `< V · P` |
+//!
+//! `S = 4 · V · 27` is the number of states of a table; a state's index is
+//! [`crate::schedule::state_index`]: `(bucket · V + current variant) · 27 + content
+//! index`, the content index being `(size · 3 + motion) · 3 + count`
+//! ([`crate::schedule::Content::index`]). An action `a`
+//! encodes the variant `a / P` and the period index `a % P`. The section is exactly
+//! `36 + 16 K + 2 K S` bytes.
 
 #[cfg(feature = "std")]
 pub mod write;
 
 use crate::crc::Crc32;
 use crate::geom::VariantId;
+use crate::schedule::{
+    BudgetInfo, CONTENT_STATES, COUNT_BUCKETS, ContentEdges, MAX_BUDGETS, MAX_PERIOD, MAX_PERIODS,
+    MOTION_BUCKETS, SIZE_BUCKETS, ScheduleAction,
+};
 use core::fmt;
 
 /// The magic number, stored little-endian as the bytes `"FRPB"`.
 pub const MAGIC: u32 = 0x4250_5246;
-/// The format version this reader understands (2 added the accesses per image, 3 the
-/// reference variant).
-pub const FORMAT_VERSION: u16 = 3;
+/// The format version the writer writes and the newest the reader understands (2 added
+/// the accesses per image, 3 the reference variant, 4 the schedules section).
+pub const FORMAT_VERSION: u16 = 4;
+/// The oldest format version the reader understands.
+pub const MIN_FORMAT_VERSION: u16 = 3;
 /// Header length in bytes.
 pub const HEADER_LEN: usize = 16;
 /// Section table entry length in bytes.
@@ -128,8 +167,10 @@ const VARIANT_RECORD: usize = 52;
 const META_RECORD: usize = 8;
 const THRESHOLDS_LEN: usize = 20;
 const POLICY_HEADER: usize = 8;
+const SCHEDULES_HEADER: usize = 36;
+const BUDGET_RECORD: usize = 16;
 
-/// Section kinds of format version 1.
+/// Section kinds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[repr(u32)]
 pub enum SectionKind {
@@ -143,20 +184,35 @@ pub enum SectionKind {
     Policy = 4,
     /// Free key/value metadata.
     Metadata = 5,
+    /// The budget schedules (optional; format version 4).
+    Schedules = 6,
 }
 
 impl SectionKind {
     /// All kinds, in the order the writer emits them.
-    pub const ALL: [SectionKind; 5] = [
+    pub const ALL: [SectionKind; 6] = [
         SectionKind::Thresholds,
         SectionKind::Families,
         SectionKind::Variants,
         SectionKind::Policy,
         SectionKind::Metadata,
+        SectionKind::Schedules,
     ];
 
-    fn from_u32(v: u32) -> Option<Self> {
-        Self::ALL.into_iter().find(|k| *k as u32 == v)
+    /// The first format version that has this kind.
+    pub const fn since(self) -> u16 {
+        match self {
+            SectionKind::Schedules => 4,
+            _ => 1,
+        }
+    }
+
+    /// The kind numbered `v` in a file of format `version`; `None` for a kind that
+    /// version does not know (such a section is skipped).
+    fn from_u32(v: u32, version: u16) -> Option<Self> {
+        Self::ALL
+            .into_iter()
+            .find(|k| *k as u32 == v && k.since() <= version)
     }
 }
 
@@ -170,7 +226,8 @@ pub enum BundleError {
     BadMagic,
     /// The magic is byte-swapped: the file was written big-endian.
     WrongEndian,
-    /// The format version is not [`FORMAT_VERSION`].
+    /// The format version is neither [`FORMAT_VERSION`] nor an older one the reader
+    /// still understands ([`MIN_FORMAT_VERSION`]).
     UnsupportedVersion,
     /// The input is longer than the length the header states.
     LengthMismatch,
@@ -202,6 +259,11 @@ pub enum BundleError {
     BadPolicyShape,
     /// A policy action, the initial or the reference variant is not a valid variant index.
     BadAction,
+    /// The schedules section has the wrong bucket counts, a bad period list or budget
+    /// count, or an edge or budget figure out of range.
+    BadSchedule,
+    /// A schedule action or the initial action is not below `V · P`.
+    BadScheduleAction,
 }
 
 impl fmt::Display for BundleError {
@@ -226,6 +288,8 @@ impl fmt::Display for BundleError {
             Self::BadValue => "policy bundle number is not finite or out of range",
             Self::BadPolicyShape => "policy bundle policy table has the wrong shape",
             Self::BadAction => "policy bundle policy action is not a valid variant",
+            Self::BadSchedule => "policy bundle schedules have a bad shape or value",
+            Self::BadScheduleAction => "policy bundle schedule action is out of range",
         };
         f.write_str(msg)
     }
@@ -492,18 +556,100 @@ impl<'a> Policy<'a> {
     }
 }
 
+/// The budget schedules: per latency budget, a table from (confidence bucket, current
+/// variant, content state) to (variant, detection period). See [`crate::schedule`].
+#[derive(Clone, Copy, Debug)]
+pub struct Schedules<'a> {
+    edges: ContentEdges,
+    periods: [u32; MAX_PERIODS],
+    period_count: u16,
+    initial: ScheduleAction,
+    /// `budget_count` records of [`BUDGET_RECORD`] bytes.
+    budgets: &'a [u8],
+    budget_count: usize,
+    /// `budget_count` tables of `states` u16 actions each.
+    tables: &'a [u8],
+    states: usize,
+}
+
+impl<'a> Schedules<'a> {
+    /// The edges of the size and motion buckets.
+    pub const fn edges(&self) -> ContentEdges {
+        self.edges
+    }
+
+    /// Number of detection periods `P` (1 ..= [`MAX_PERIODS`]).
+    pub const fn period_count(&self) -> usize {
+        self.period_count as usize
+    }
+
+    /// Period `i` in frames, `None` for `i >= P`.
+    pub fn period(&self, i: usize) -> Option<u32> {
+        if i >= self.period_count() {
+            return None;
+        }
+        self.periods.get(i).copied()
+    }
+
+    /// Number of budget tables `K` (1 ..= [`MAX_BUDGETS`]).
+    pub const fn budget_count(&self) -> usize {
+        self.budget_count
+    }
+
+    /// What budget table `k` was made for.
+    pub fn budget(&self, k: usize) -> Option<BudgetInfo> {
+        if k >= self.budget_count {
+            return None;
+        }
+        let off = k.checked_mul(BUDGET_RECORD)?;
+        budget_info(self.budgets.get(off..off.checked_add(BUDGET_RECORD)?)?)
+    }
+
+    /// The action of the first frame.
+    pub const fn initial(&self) -> ScheduleAction {
+        self.initial
+    }
+
+    /// Number of states of one table, `BUCKET_COUNT · V · CONTENT_STATES`.
+    pub const fn state_count(&self) -> usize {
+        self.states
+    }
+
+    /// Budget table `k`'s action for the state of index `state`
+    /// ([`crate::schedule::state_index`]); `None` only for an index out of range.
+    pub fn action(&self, k: usize, state: usize) -> Option<ScheduleAction> {
+        if k >= self.budget_count || state >= self.states {
+            return None;
+        }
+        let i = k.checked_mul(self.states)?.checked_add(state)?;
+        self.decode(rd_u16(self.tables, i.checked_mul(2)?)?)
+    }
+
+    /// The action encoded as `a` (`variant · P + period index`).
+    fn decode(&self, a: u16) -> Option<ScheduleAction> {
+        let p = self.period_count;
+        Some(ScheduleAction {
+            variant: a.checked_div(p)?,
+            period: *self.periods.get(usize::from(a.checked_rem(p)?))?,
+        })
+    }
+}
+
 /// A parsed, fully validated policy bundle borrowing its bytes.
 #[derive(Clone, Copy, Debug)]
 pub struct Bundle<'a> {
+    version: u16,
     thresholds: Thresholds,
     families: Table<'a>,
     variants: Table<'a>,
     policy: Policy<'a>,
     metadata: Table<'a>,
+    schedules: Option<Schedules<'a>>,
 }
 
 struct Sections<'a> {
-    found: [Option<&'a [u8]>; 5],
+    version: u16,
+    found: [Option<&'a [u8]>; SectionKind::ALL.len()],
 }
 
 fn parse_header(bytes: &[u8]) -> Result<Sections<'_>, BundleError> {
@@ -516,7 +662,7 @@ fn parse_header(bytes: &[u8]) -> Result<Sections<'_>, BundleError> {
         });
     }
     let version = rd_u16(bytes, 4).ok_or(BundleError::Truncated)?;
-    if version != FORMAT_VERSION {
+    if !(MIN_FORMAT_VERSION..=FORMAT_VERSION).contains(&version) {
         return Err(BundleError::UnsupportedVersion);
     }
     let n = rd_u16(bytes, 6).ok_or(BundleError::Truncated)? as usize;
@@ -542,7 +688,7 @@ fn parse_header(bytes: &[u8]) -> Result<Sections<'_>, BundleError> {
     if crc.finish() != stored_crc {
         return Err(BundleError::FileChecksum);
     }
-    let mut found: [Option<&[u8]>; 5] = [None; 5];
+    let mut found: [Option<&[u8]>; SectionKind::ALL.len()] = [None; SectionKind::ALL.len()];
     for i in 0..n {
         let e = HEADER_LEN + i * SECTION_ENTRY_LEN;
         let kind = rd_u32(bytes, e).ok_or(BundleError::Truncated)?;
@@ -559,7 +705,7 @@ fn parse_header(bytes: &[u8]) -> Result<Sections<'_>, BundleError> {
         if crate::crc::crc32(body) != sec_crc {
             return Err(BundleError::SectionChecksum);
         }
-        if let Some(k) = SectionKind::from_u32(kind) {
+        if let Some(k) = SectionKind::from_u32(kind, version) {
             let slot = found
                 .get_mut(k as usize - 1)
                 .ok_or(BundleError::MissingSection)?;
@@ -569,14 +715,14 @@ fn parse_header(bytes: &[u8]) -> Result<Sections<'_>, BundleError> {
             *slot = Some(body);
         }
     }
-    Ok(Sections { found })
+    Ok(Sections { version, found })
 }
 
 impl<'a> Bundle<'a> {
     /// Parses and validates a bundle. Never panics; never allocates.
     pub fn parse(bytes: &'a [u8]) -> Result<Self, BundleError> {
         let s = parse_header(bytes)?;
-        let [th, fam, var, pol, meta] = s.found;
+        let [th, fam, var, pol, meta, sched] = s.found;
         let (th, fam, var, pol, meta) = (
             th.ok_or(BundleError::MissingSection)?,
             fam.ok_or(BundleError::MissingSection)?,
@@ -600,13 +746,29 @@ impl<'a> Bundle<'a> {
                 rd_u32(r, 4).ok_or(BundleError::BadSectionLength)?,
             )?;
         }
+        let schedules = match sched {
+            Some(b) => Some(parse_schedules(b, variants.count)?),
+            None => None,
+        };
         Ok(Self {
+            version: s.version,
             thresholds,
             families,
             variants,
             policy,
             metadata,
+            schedules,
         })
+    }
+
+    /// The format version of the file this bundle was read from.
+    pub const fn version(&self) -> u16 {
+        self.version
+    }
+
+    /// The budget schedules, `None` when the bundle has none (every version-3 bundle).
+    pub const fn schedules(&self) -> Option<Schedules<'a>> {
+        self.schedules
     }
 
     /// Thresholds and periods.
@@ -802,4 +964,100 @@ fn parse_policy(b: &[u8], variants: usize) -> Result<Policy<'_>, BundleError> {
         initial,
         reference,
     })
+}
+
+fn budget_info(r: &[u8]) -> Option<BudgetInfo> {
+    Some(BudgetInfo {
+        budget_ms: rd_f32(r, 0)?,
+        slowdown: rd_f32(r, 4)?,
+        expected_ms: rd_f32(r, 8)?,
+        p95_ms: rd_f32(r, 12)?,
+    })
+}
+
+fn parse_schedules(b: &[u8], variants: usize) -> Result<Schedules<'_>, BundleError> {
+    let u16_at = |off| rd_u16(b, off).ok_or(BundleError::BadSectionLength);
+    let f32_at = |off| rd_f32(b, off).ok_or(BundleError::BadSectionLength);
+    let shape = [u16_at(0)?, u16_at(2)?, u16_at(4)?].map(usize::from);
+    let period_count = u16_at(6)?;
+    if shape != [SIZE_BUCKETS, MOTION_BUCKETS, COUNT_BUCKETS]
+        || period_count == 0
+        || usize::from(period_count) > MAX_PERIODS
+    {
+        return Err(BundleError::BadSchedule);
+    }
+    let edges = ContentEdges {
+        size_px: [f32_at(8)?, f32_at(12)?],
+        motion_px: [f32_at(16)?, f32_at(20)?],
+    };
+    if !edges.is_valid() {
+        return Err(BundleError::BadSchedule);
+    }
+    let mut periods = [0u32; MAX_PERIODS];
+    let mut previous = 0;
+    for (i, slot) in periods.iter_mut().enumerate() {
+        let p = u32::from(u16_at(24 + 2 * i)?);
+        let ok = if i < usize::from(period_count) {
+            p > previous && p <= MAX_PERIOD
+        } else {
+            p == 0
+        };
+        if !ok {
+            return Err(BundleError::BadSchedule);
+        }
+        *slot = p;
+        previous = p;
+    }
+    let budget_count = usize::from(u16_at(32)?);
+    if budget_count == 0 || budget_count > MAX_BUDGETS {
+        return Err(BundleError::BadSchedule);
+    }
+    let initial = u16_at(34)?;
+    let states = variants
+        .checked_mul(crate::bundle::BUCKET_COUNT * CONTENT_STATES)
+        .ok_or(BundleError::BadSectionLength)?;
+    let budgets_end = SCHEDULES_HEADER + BUDGET_RECORD * budget_count;
+    let expected = states
+        .checked_mul(budget_count)
+        .and_then(|n| n.checked_mul(2))
+        .and_then(|n| n.checked_add(budgets_end))
+        .ok_or(BundleError::BadSectionLength)?;
+    if b.len() != expected {
+        return Err(BundleError::BadSectionLength);
+    }
+    let budgets = b
+        .get(SCHEDULES_HEADER..budgets_end)
+        .ok_or(BundleError::BadSectionLength)?;
+    if budgets
+        .chunks_exact(BUDGET_RECORD)
+        .any(|r| !budget_info(r).is_some_and(|i| i.is_valid()))
+    {
+        return Err(BundleError::BadSchedule);
+    }
+    let tables = b.get(budgets_end..).ok_or(BundleError::BadSectionLength)?;
+    // every action, and the initial one, below V · P
+    let limit = variants.saturating_mul(usize::from(period_count));
+    let in_range = |a: u16| usize::from(a) < limit;
+    if !in_range(initial)
+        || tables
+            .chunks_exact(2)
+            .any(|c| !in_range(<[u8; 2]>::try_from(c).map_or(u16::MAX, u16::from_le_bytes)))
+    {
+        return Err(BundleError::BadScheduleAction);
+    }
+    let mut s = Schedules {
+        edges,
+        periods,
+        period_count,
+        initial: ScheduleAction {
+            variant: 0,
+            period: 1,
+        },
+        budgets,
+        budget_count,
+        tables,
+        states,
+    };
+    s.initial = s.decode(initial).ok_or(BundleError::BadScheduleAction)?;
+    Ok(s)
 }

@@ -1,5 +1,7 @@
 //! The bundle writer (feature `std`): a builder taking owned structs, producing the
-//! bytes of format version 1 (see the [module docs](super) for the layout).
+//! bytes of format version [`FORMAT_VERSION`] (see the [module docs](super) for the
+//! layout). A bundle without schedules has the sections of version 3; only the
+//! version field (and so the file checksum) differs.
 //!
 //! ```
 //! use frugal_runtime::bundle::write::{BundleWriter, FamilySpec, VariantSpec};
@@ -25,6 +27,10 @@ use super::{
 };
 use crate::crc::{Crc32, crc32};
 use crate::geom::VariantId;
+use crate::schedule::{
+    BudgetInfo, CONTENT_STATES, COUNT_BUCKETS, ContentEdges, MAX_BUDGETS, MAX_PERIOD, MAX_PERIODS,
+    MOTION_BUCKETS, SIZE_BUCKETS, ScheduleAction,
+};
 use std::fmt;
 use std::string::String;
 use std::vec::Vec;
@@ -69,6 +75,30 @@ impl VariantSpec {
     }
 }
 
+/// The budget schedules of a bundle ([`crate::bundle::Schedules`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScheduleSpec {
+    /// The edges of the size and motion buckets.
+    pub edges: ContentEdges,
+    /// The detection periods in frames: 1 ..= [`MAX_PERIODS`] of them, strictly
+    /// ascending, each in 1 ..= 255.
+    pub periods: Vec<u32>,
+    /// The action of the first frame.
+    pub initial: ScheduleAction,
+    /// One table per latency budget, 1 ..= [`MAX_BUDGETS`] of them.
+    pub budgets: Vec<BudgetSpec>,
+}
+
+/// One latency budget's table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BudgetSpec {
+    /// What the table was made for.
+    pub info: BudgetInfo,
+    /// The action of every state, in [`crate::schedule::state_index`] order:
+    /// `BUCKET_COUNT · V · CONTENT_STATES` (108 `V`) of them.
+    pub actions: Vec<ScheduleAction>,
+}
+
 /// Why a bundle could not be written.
 #[non_exhaustive]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -79,6 +109,22 @@ pub enum WriteError {
     TooLarge,
     /// No policy was given.
     MissingPolicy,
+    /// The schedules' periods are none, more than [`MAX_PERIODS`], not strictly
+    /// ascending, or outside 1 ..= 255.
+    BadPeriods,
+    /// The schedules' size or motion edges are not finite or not `0 <= e0 <= e1`.
+    BadEdges,
+    /// The schedules have no budget, or more than [`MAX_BUDGETS`].
+    BadBudgetCount,
+    /// A budget's figures are not finite, or its budget or slowdown is not positive,
+    /// or a latency is negative.
+    BadBudget,
+    /// A budget table does not have one action per state (`BUCKET_COUNT · V ·
+    /// CONTENT_STATES`).
+    BadScheduleLength,
+    /// A schedule action (or the initial one) names a variant that does not exist or
+    /// a period that is not among the schedules' periods.
+    BadScheduleAction,
     /// The written bytes do not pass the reader (the reason is the reader's).
     Invalid(BundleError),
 }
@@ -87,8 +133,24 @@ impl fmt::Display for WriteError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Self::StringTooLong => f.write_str("bundle string longer than 65535 bytes"),
-            Self::TooLarge => f.write_str("bundle too large for format version 1"),
+            Self::TooLarge => f.write_str("bundle too large for its format"),
             Self::MissingPolicy => f.write_str("bundle has no policy table"),
+            Self::BadPeriods => f.write_str(
+                "bundle schedule periods must be 1 to 4 strictly ascending values in 1..=255",
+            ),
+            Self::BadEdges => f.write_str(
+                "bundle schedule content edges must be finite with 0 <= edge 0 <= edge 1",
+            ),
+            Self::BadBudgetCount => f.write_str("bundle schedules must have 1 to 8 budgets"),
+            Self::BadBudget => f.write_str(
+                "bundle schedule budget figures must be finite, budget and slowdown positive",
+            ),
+            Self::BadScheduleLength => {
+                f.write_str("bundle schedule table does not have one action per state")
+            }
+            Self::BadScheduleAction => f.write_str(
+                "bundle schedule action names an unknown variant or a period not offered",
+            ),
             Self::Invalid(e) => write!(f, "bundle would be invalid: {e}"),
         }
     }
@@ -112,6 +174,7 @@ pub struct BundleWriter {
     policy: Option<(VariantId, Vec<VariantId>)>,
     reference: Option<VariantId>,
     metadata: Vec<(String, String)>,
+    schedules: Option<ScheduleSpec>,
 }
 
 /// A section body under construction: records then a string pool.
@@ -184,13 +247,19 @@ impl BundleWriter {
         self
     }
 
+    /// Sets the budget schedules (section 6). Checked in [`BundleWriter::finish`].
+    pub fn schedules(mut self, schedules: ScheduleSpec) -> Self {
+        self.schedules = Some(schedules);
+        self
+    }
+
     /// Appends a metadata pair.
     pub fn metadata(mut self, key: impl Into<String>, value: impl Into<String>) -> Self {
         self.metadata.push((key.into(), value.into()));
         self
     }
 
-    fn sections(&self) -> Result<[(SectionKind, Vec<u8>); 5], WriteError> {
+    fn sections(&self) -> Result<Vec<(SectionKind, Vec<u8>)>, WriteError> {
         let t = &self.thresholds;
         let mut th = Vec::with_capacity(20);
         th.extend_from_slice(&t.iou_threshold.to_le_bytes());
@@ -246,13 +315,20 @@ impl BundleWriter {
             meta.string(val)?;
         }
 
-        Ok([
+        let mut sections = std::vec![
             (SectionKind::Thresholds, th),
             (SectionKind::Families, fam.finish()),
             (SectionKind::Variants, var.finish()),
             (SectionKind::Policy, pol),
             (SectionKind::Metadata, meta.finish()),
-        ])
+        ];
+        if let Some(spec) = &self.schedules {
+            sections.push((
+                SectionKind::Schedules,
+                schedules_body(spec, self.variants.len())?,
+            ));
+        }
+        Ok(sections)
     }
 
     /// The bundle's bytes, checked by parsing them back.
@@ -278,7 +354,8 @@ impl BundleWriter {
         let mut header = Vec::with_capacity(HEADER_LEN);
         header.extend_from_slice(&MAGIC.to_le_bytes());
         header.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
-        header.extend_from_slice(&(n as u16).to_le_bytes());
+        let n = u16::try_from(n).map_err(|_| WriteError::TooLarge)?;
+        header.extend_from_slice(&n.to_le_bytes());
         header.extend_from_slice(&total.to_le_bytes());
         header.extend_from_slice(&[0; 4]);
         out.splice(0..table_end, header.into_iter().chain(entries));
@@ -291,4 +368,73 @@ impl BundleWriter {
         Bundle::parse(&out).map_err(WriteError::Invalid)?;
         Ok(out)
     }
+}
+
+/// The body of the schedules section for a bundle of `variants` variants, checked.
+fn schedules_body(spec: &ScheduleSpec, variants: usize) -> Result<Vec<u8>, WriteError> {
+    let periods = &spec.periods;
+    if periods.is_empty()
+        || periods.len() > MAX_PERIODS
+        || periods.iter().any(|p| !(1..=MAX_PERIOD).contains(p))
+        || periods.windows(2).any(|w| w.first() >= w.get(1))
+    {
+        return Err(WriteError::BadPeriods);
+    }
+    if !spec.edges.is_valid() {
+        return Err(WriteError::BadEdges);
+    }
+    if spec.budgets.is_empty() || spec.budgets.len() > MAX_BUDGETS {
+        return Err(WriteError::BadBudgetCount);
+    }
+    if spec.budgets.iter().any(|b| !b.info.is_valid()) {
+        return Err(WriteError::BadBudget);
+    }
+    let states = variants
+        .checked_mul(BUCKET_COUNT * CONTENT_STATES)
+        .ok_or(WriteError::TooLarge)?;
+    if spec.budgets.iter().any(|b| b.actions.len() != states) {
+        return Err(WriteError::BadScheduleLength);
+    }
+    // an action is stored as variant · P + period index, which must fit a u16
+    let encode = |a: &ScheduleAction| -> Result<u16, WriteError> {
+        let period = periods
+            .iter()
+            .position(|p| *p == a.period)
+            .ok_or(WriteError::BadScheduleAction)?;
+        if usize::from(a.variant) >= variants {
+            return Err(WriteError::BadScheduleAction);
+        }
+        let code = usize::from(a.variant) * periods.len() + period;
+        u16::try_from(code).map_err(|_| WriteError::TooLarge)
+    };
+    let len16 = |n: usize| u16::try_from(n).map_err(|_| WriteError::TooLarge);
+    let mut b = Vec::with_capacity(36 + spec.budgets.len() * (16 + 2 * states));
+    for n in [SIZE_BUCKETS, MOTION_BUCKETS, COUNT_BUCKETS, periods.len()] {
+        b.extend_from_slice(&len16(n)?.to_le_bytes());
+    }
+    let ContentEdges {
+        size_px: [s0, s1],
+        motion_px: [m0, m1],
+    } = spec.edges;
+    for e in [s0, s1, m0, m1] {
+        b.extend_from_slice(&e.to_le_bytes());
+    }
+    for i in 0..MAX_PERIODS {
+        let p = periods.get(i).map_or(Ok(0), |p| u16::try_from(*p));
+        b.extend_from_slice(&p.map_err(|_| WriteError::BadPeriods)?.to_le_bytes());
+    }
+    b.extend_from_slice(&len16(spec.budgets.len())?.to_le_bytes());
+    b.extend_from_slice(&encode(&spec.initial)?.to_le_bytes());
+    for budget in &spec.budgets {
+        let i = budget.info;
+        for v in [i.budget_ms, i.slowdown, i.expected_ms, i.p95_ms] {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    for budget in &spec.budgets {
+        for a in &budget.actions {
+            b.extend_from_slice(&encode(a)?.to_le_bytes());
+        }
+    }
+    Ok(b)
 }

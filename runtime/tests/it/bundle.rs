@@ -1,9 +1,14 @@
-use frugal_runtime::bundle::write::{BundleWriter, FamilySpec, VariantSpec, WriteError};
+use frugal_runtime::bundle::write::{
+    BudgetSpec, BundleWriter, FamilySpec, ScheduleSpec, VariantSpec, WriteError,
+};
 use frugal_runtime::bundle::{
     BUCKET_COUNT, Bucket, Bundle, BundleError, FORMAT_VERSION, HEADER_LEN, MAGIC, MAX_ACCESSES,
-    SECTION_ENTRY_LEN, ScoreBuckets, Thresholds,
+    MIN_FORMAT_VERSION, SECTION_ENTRY_LEN, ScoreBuckets, SectionKind, Thresholds,
 };
 use frugal_runtime::crc::{Crc32, crc32};
+use frugal_runtime::schedule::{
+    BudgetInfo, CONTENT_STATES, Content, ContentEdges, MAX_BUDGETS, ScheduleAction, state_index,
+};
 use proptest::prelude::*;
 
 const CNN: ScoreBuckets = ScoreBuckets {
@@ -43,6 +48,55 @@ fn writer() -> BundleWriter {
 
 fn sample() -> Vec<u8> {
     writer().finish().expect("valid bundle")
+}
+
+const PERIODS: [u32; 3] = [1, 3, 8];
+
+/// The action of budget `k` in state `i` of [`scheduled_writer`]'s tables (3 variants).
+fn action_of(k: usize, i: usize) -> ScheduleAction {
+    ScheduleAction {
+        variant: ((i / CONTENT_STATES + k) % 3) as u16,
+        period: PERIODS[(i * 7 + k) % 3],
+    }
+}
+
+fn budget_info(k: usize) -> BudgetInfo {
+    BudgetInfo {
+        budget_ms: 40.0 / (k + 1) as f32,
+        slowdown: 39.0,
+        expected_ms: 30.0 / (k + 1) as f32,
+        p95_ms: 38.5 / (k + 1) as f32,
+    }
+}
+
+fn schedule_spec(budgets: usize) -> ScheduleSpec {
+    let states = BUCKET_COUNT * 3 * CONTENT_STATES;
+    ScheduleSpec {
+        edges: ContentEdges {
+            size_px: [20.0, 50.5],
+            motion_px: [0.5, 3.0],
+        },
+        periods: PERIODS.to_vec(),
+        initial: ScheduleAction {
+            variant: 2,
+            period: 3,
+        },
+        budgets: (0..budgets)
+            .map(|k| BudgetSpec {
+                info: budget_info(k),
+                actions: (0..states).map(|i| action_of(k, i)).collect(),
+            })
+            .collect(),
+    }
+}
+
+/// [`writer`] with two budget schedules.
+fn scheduled_writer() -> BundleWriter {
+    writer().schedules(schedule_spec(2))
+}
+
+fn scheduled_sample() -> Vec<u8> {
+    scheduled_writer().finish().expect("valid bundle")
 }
 
 /// Recomputes every section checksum (where the section is in bounds) and the file
@@ -86,6 +140,30 @@ fn exercise(b: &Bundle<'_>) {
         }
     }
     assert_eq!(b.metadata().count(), b.metadata_len());
+    if let Some(s) = b.schedules() {
+        assert!(s.edges().is_valid());
+        let p = s.period_count();
+        assert!((1..=4).contains(&p));
+        let periods: Vec<u32> = (0..p).map(|i| s.period(i).unwrap()).collect();
+        assert!(periods.windows(2).all(|w| w[0] < w[1]) && periods[0] >= 1);
+        assert_eq!(s.period(p), None);
+        assert!(s.initial().variant < v && periods.contains(&s.initial().period));
+        assert!((1..=MAX_BUDGETS).contains(&s.budget_count()));
+        assert_eq!(
+            s.state_count(),
+            BUCKET_COUNT * usize::from(v) * CONTENT_STATES
+        );
+        for k in 0..s.budget_count() {
+            assert!(s.budget(k).unwrap().is_valid());
+            for i in 0..s.state_count() {
+                let a = s.action(k, i).unwrap();
+                assert!(a.variant < v && periods.contains(&a.period));
+            }
+            assert_eq!(s.action(k, s.state_count()), None);
+        }
+        assert_eq!(s.budget(s.budget_count()), None);
+        assert_eq!(s.action(s.budget_count(), 0), None);
+    }
 }
 
 #[test]
@@ -140,6 +218,341 @@ fn round_trip_keeps_every_field() {
     exercise(&b);
     // Deterministic output.
     assert_eq!(bytes, sample());
+}
+
+#[test]
+fn schedules_round_trip() {
+    let bytes = scheduled_sample();
+    let b = Bundle::parse(&bytes).unwrap();
+    assert_eq!(b.version(), FORMAT_VERSION);
+    assert_eq!(FORMAT_VERSION, 4);
+    let s = b.schedules().expect("schedules");
+    assert_eq!(
+        s.edges(),
+        ContentEdges {
+            size_px: [20.0, 50.5],
+            motion_px: [0.5, 3.0],
+        }
+    );
+    assert_eq!(s.period_count(), 3);
+    assert_eq!(
+        (0..4).map(|i| s.period(i)).collect::<Vec<_>>(),
+        [Some(1), Some(3), Some(8), None]
+    );
+    assert_eq!(
+        s.initial(),
+        ScheduleAction {
+            variant: 2,
+            period: 3
+        }
+    );
+    assert_eq!(s.budget_count(), 2);
+    assert_eq!(s.budget(0), Some(budget_info(0)));
+    assert_eq!(s.budget(1), Some(budget_info(1)));
+    assert_eq!(s.budget(2), None);
+    assert_eq!(s.state_count(), 4 * 3 * 27);
+    for k in 0..2 {
+        for i in 0..s.state_count() {
+            assert_eq!(
+                s.action(k, i),
+                Some(action_of(k, i)),
+                "budget {k} state {i}"
+            );
+        }
+    }
+    // the state index names the state the writer meant
+    let c = Content {
+        size: 2,
+        motion: 1,
+        count: 0,
+    };
+    let i = state_index(Bucket::Inadequate, 1, c, 3);
+    assert_eq!(i, (2 * 3 + 1) * 27 + 21);
+    assert_eq!(s.action(1, i), Some(action_of(1, i)));
+    // everything else is as without schedules
+    let plain_bytes = sample();
+    let plain = Bundle::parse(&plain_bytes).unwrap();
+    assert!(plain.schedules().is_none());
+    assert_eq!(b.thresholds(), plain.thresholds());
+    assert_eq!(b.metadata().count(), plain.metadata().count());
+    exercise(&b);
+    assert_eq!(bytes, scheduled_sample());
+}
+
+/// `bytes` with its version field set to `version` and the file checksum fixed.
+fn with_version(bytes: &[u8], version: u16) -> Vec<u8> {
+    let mut b = bytes.to_vec();
+    b[4..6].copy_from_slice(&version.to_le_bytes());
+    fix_checksums(&mut b);
+    b
+}
+
+#[test]
+fn a_version_3_bundle_is_read_and_never_misread() {
+    assert_eq!(MIN_FORMAT_VERSION, 3);
+    // the writer's sections without schedules are exactly those of version 3
+    let v3 = with_version(&sample(), 3);
+    let b = Bundle::parse(&v3).unwrap();
+    assert_eq!(b.version(), 3);
+    assert!(b.schedules().is_none());
+    assert_eq!(b.variant_count(), 3);
+    assert_eq!(b.policy().action(Bucket::Miss, 0), Some(2));
+    exercise(&b);
+    // a kind-6 section in a version-3 file is an unknown kind there: skipped
+    let v3 = with_version(&scheduled_sample(), 3);
+    let b = Bundle::parse(&v3).unwrap();
+    assert!(b.schedules().is_none());
+    exercise(&b);
+    // versions the reader does not know, old or new
+    for version in [0, 1, 2, 5, u16::MAX] {
+        assert_eq!(
+            Bundle::parse(&with_version(&scheduled_sample(), version)).unwrap_err(),
+            BundleError::UnsupportedVersion,
+            "version {version}"
+        );
+    }
+}
+
+#[test]
+fn a_bundle_without_schedules_has_five_sections_as_before() {
+    let bytes = sample();
+    assert_eq!(u16::from_le_bytes([bytes[6], bytes[7]]), 5);
+    let kinds: Vec<u32> = (0..5)
+        .map(|i| {
+            let e = HEADER_LEN + i * SECTION_ENTRY_LEN;
+            u32::from_le_bytes(bytes[e..e + 4].try_into().unwrap())
+        })
+        .collect();
+    assert_eq!(kinds, [1, 2, 3, 4, 5]);
+    let scheduled = scheduled_sample();
+    assert_eq!(u16::from_le_bytes([scheduled[6], scheduled[7]]), 6);
+    assert_eq!(body_offset(&scheduled, 6) % 4, 0, "sections start aligned");
+    assert_eq!(SectionKind::Schedules.since(), 4);
+}
+
+#[test]
+fn every_change_to_a_bundle_with_schedules_is_an_error() {
+    let bytes = scheduled_sample();
+    for len in 0..bytes.len() {
+        let e = Bundle::parse(&bytes[..len]).unwrap_err();
+        assert_eq!(e, BundleError::Truncated, "length {len}");
+    }
+    let mut longer = bytes.clone();
+    longer.push(0);
+    assert_eq!(
+        Bundle::parse(&longer).unwrap_err(),
+        BundleError::LengthMismatch
+    );
+    for i in 0..bytes.len() {
+        for mask in [0x01u8, 0x80, 0xFF] {
+            let mut c = bytes.clone();
+            c[i] ^= mask;
+            assert!(
+                Bundle::parse(&c).is_err(),
+                "flipping byte {i} with {mask:#x} went unnoticed"
+            );
+        }
+    }
+}
+
+#[test]
+fn schedule_errors_behind_valid_checksums() {
+    let bytes = scheduled_sample();
+    let body = body_offset(&bytes, 6);
+    let patched = |at: usize, value: &[u8]| {
+        let mut b = bytes.clone();
+        b[body + at..body + at + value.len()].copy_from_slice(value);
+        fix_checksums(&mut b);
+        Bundle::parse(&b).map(|_| ()).unwrap_err()
+    };
+    let u16le = |v: u16| v.to_le_bytes();
+    let f32le = |v: f32| v.to_le_bytes();
+    use BundleError::{BadSchedule, BadScheduleAction};
+    for (what, at, value, error) in [
+        ("4 size buckets", 0, u16le(4).to_vec(), BadSchedule),
+        ("2 motion buckets", 2, u16le(2).to_vec(), BadSchedule),
+        ("0 count buckets", 4, u16le(0).to_vec(), BadSchedule),
+        ("0 periods", 6, u16le(0).to_vec(), BadSchedule),
+        ("5 periods", 6, u16le(5).to_vec(), BadSchedule),
+        ("NaN size edge", 8, f32le(f32::NAN).to_vec(), BadSchedule),
+        (
+            "size edges out of order",
+            8,
+            f32le(60.0).to_vec(),
+            BadSchedule,
+        ),
+        (
+            "negative motion edge",
+            16,
+            f32le(-0.5).to_vec(),
+            BadSchedule,
+        ),
+        (
+            "infinite motion edge",
+            20,
+            f32le(f32::INFINITY).to_vec(),
+            BadSchedule,
+        ),
+        ("period 0", 24, u16le(0).to_vec(), BadSchedule),
+        ("periods not ascending", 26, u16le(1).to_vec(), BadSchedule),
+        ("period above 255", 28, u16le(256).to_vec(), BadSchedule),
+        ("a period past P", 30, u16le(9).to_vec(), BadSchedule),
+        ("0 budgets", 32, u16le(0).to_vec(), BadSchedule),
+        (
+            "initial action = V P",
+            34,
+            u16le(9).to_vec(),
+            BadScheduleAction,
+        ),
+        ("budget 0 ms", 36, f32le(0.0).to_vec(), BadSchedule),
+        ("NaN slowdown", 40, f32le(f32::NAN).to_vec(), BadSchedule),
+        (
+            "negative expected latency",
+            44,
+            f32le(-1.0).to_vec(),
+            BadSchedule,
+        ),
+        (
+            "infinite p95",
+            60 + 4,
+            f32le(f32::INFINITY).to_vec(),
+            BadSchedule,
+        ),
+        (
+            "an action = V P",
+            36 + 32,
+            u16le(9).to_vec(),
+            BadScheduleAction,
+        ),
+        (
+            "the last action",
+            36 + 32 + 2 * 2 * 324 - 2,
+            u16le(u16::MAX).to_vec(),
+            BadScheduleAction,
+        ),
+    ] {
+        assert_eq!(patched(at, &value), error, "{what}");
+    }
+    // a changed budget count no longer matches the section's length
+    assert_eq!(patched(32, &u16le(3)), BundleError::BadSectionLength);
+    assert_eq!(patched(32, &u16le(9)), BadSchedule);
+    // fewer periods: the unused slot must be 0
+    assert_eq!(patched(6, &u16le(2)), BadSchedule);
+    // the largest action is fine
+    let mut ok = bytes.clone();
+    ok[body + 68..body + 70].copy_from_slice(&u16le(8));
+    fix_checksums(&mut ok);
+    let b = Bundle::parse(&ok).unwrap();
+    assert_eq!(
+        b.schedules().unwrap().action(0, 0),
+        Some(ScheduleAction {
+            variant: 2,
+            period: 8
+        })
+    );
+    // the section twice
+    let mut dup = bytes.clone();
+    let e5 = HEADER_LEN + 4 * SECTION_ENTRY_LEN;
+    let entry6 = dup[e5 + 16..e5 + 32].to_vec();
+    dup[e5..e5 + 16].copy_from_slice(&entry6);
+    fix_checksums(&mut dup);
+    assert_eq!(
+        Bundle::parse(&dup).unwrap_err(),
+        BundleError::DuplicateSection
+    );
+}
+
+/// A change to a schedule spec.
+type Edit = dyn Fn(&mut ScheduleSpec);
+
+#[test]
+fn the_writer_checks_schedules() {
+    let with = |f: &Edit| {
+        let mut spec = schedule_spec(1);
+        f(&mut spec);
+        writer().schedules(spec).finish().map(|_| ())
+    };
+    assert_eq!(with(&|_| ()), Ok(()));
+    let max_budgets = |s: &mut ScheduleSpec| {
+        let one = s.budgets[0].clone();
+        s.budgets = vec![one; MAX_BUDGETS];
+    };
+    assert_eq!(with(&max_budgets), Ok(()));
+    let cases: [(&str, &Edit, WriteError); 15] = [
+        ("no period", &|s| s.periods.clear(), WriteError::BadPeriods),
+        (
+            "5 periods",
+            &|s| s.periods = vec![1, 2, 3, 4, 5],
+            WriteError::BadPeriods,
+        ),
+        ("period 0", &|s| s.periods[0] = 0, WriteError::BadPeriods),
+        (
+            "period 256",
+            &|s| s.periods[2] = 256,
+            WriteError::BadPeriods,
+        ),
+        (
+            "unordered",
+            &|s| s.periods = vec![3, 1, 8],
+            WriteError::BadPeriods,
+        ),
+        (
+            "repeated",
+            &|s| s.periods = vec![1, 3, 3],
+            WriteError::BadPeriods,
+        ),
+        (
+            "edges",
+            &|s| s.edges.size_px = [5.0, 1.0],
+            WriteError::BadEdges,
+        ),
+        (
+            "no budget",
+            &|s| s.budgets.clear(),
+            WriteError::BadBudgetCount,
+        ),
+        (
+            "9 budgets",
+            &|s| s.budgets = vec![s.budgets[0].clone(); MAX_BUDGETS + 1],
+            WriteError::BadBudgetCount,
+        ),
+        (
+            "budget 0 ms",
+            &|s| s.budgets[0].info.budget_ms = 0.0,
+            WriteError::BadBudget,
+        ),
+        (
+            "NaN p95",
+            &|s| s.budgets[0].info.p95_ms = f32::NAN,
+            WriteError::BadBudget,
+        ),
+        (
+            "short table",
+            &|s| {
+                s.budgets[0].actions.pop();
+            },
+            WriteError::BadScheduleLength,
+        ),
+        (
+            "unknown variant",
+            &|s| s.budgets[0].actions[5].variant = 3,
+            WriteError::BadScheduleAction,
+        ),
+        (
+            "unoffered period",
+            &|s| s.budgets[0].actions[7].period = 2,
+            WriteError::BadScheduleAction,
+        ),
+        (
+            "bad initial",
+            &|s| s.initial.period = 4,
+            WriteError::BadScheduleAction,
+        ),
+    ];
+    for (what, f, error) in cases {
+        assert_eq!(with(f), Err(error), "{what}");
+        assert!(!error.to_string().is_empty());
+    }
 }
 
 #[test]
@@ -281,12 +694,17 @@ fn the_reference_variant_is_kept_and_checked() {
 
 /// Offset of the policy section's body (kind 4) from the section table.
 fn policy_body_offset(b: &[u8]) -> usize {
+    body_offset(b, 4)
+}
+
+/// Offset of the body of the section of kind `kind`, from the section table.
+fn body_offset(b: &[u8], kind: u32) -> usize {
     let n = u16::from_le_bytes([b[6], b[7]]) as usize;
     (0..n)
         .map(|i| HEADER_LEN + i * SECTION_ENTRY_LEN)
-        .find(|&e| u32::from_le_bytes(b[e..e + 4].try_into().unwrap()) == 4)
+        .find(|&e| u32::from_le_bytes(b[e..e + 4].try_into().unwrap()) == kind)
         .map(|e| u32::from_le_bytes(b[e + 4..e + 8].try_into().unwrap()) as usize)
-        .expect("a policy section")
+        .expect("a section of that kind")
 }
 
 #[test]
@@ -457,6 +875,28 @@ proptest! {
         let mut b = sample();
         for (i, v) in edits {
             let at = i.index(b.len());
+            b[at] = v;
+        }
+        fix_checksums(&mut b);
+        if let Ok(b) = Bundle::parse(&b) {
+            exercise(&b);
+        }
+    }
+
+    /// The same for a bundle with schedules, the edits inside the schedules section
+    /// half of the time.
+    #[test]
+    fn mutated_scheduled_bundles_never_panic(
+        edits in proptest::collection::vec((any::<prop::sample::Index>(), any::<u8>(), any::<bool>()), 1..6)
+    ) {
+        let mut b = scheduled_sample();
+        let body = body_offset(&b, 6);
+        for (i, v, in_schedules) in edits {
+            let at = if in_schedules {
+                body + i.index(b.len() - body)
+            } else {
+                i.index(b.len())
+            };
             b[at] = v;
         }
         fix_checksums(&mut b);

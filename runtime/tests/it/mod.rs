@@ -2,4 +2,5 @@ mod bundle;
 mod controller;
 mod opencv;
 mod pilot;
+mod schedule;
 mod tracker;

@@ -1,0 +1,629 @@
+//! The budget scheduler: content buckets, the state layout, the per-frame decisions on
+//! a hand-made bundle, and the pilot flying it over a synthetic clip.
+
+use frugal_runtime::bundle::write::{
+    BudgetSpec, BundleWriter, FamilySpec, ScheduleSpec, VariantSpec,
+};
+use frugal_runtime::bundle::{BUCKET_COUNT, Bucket, ScoreBuckets, Thresholds};
+use frugal_runtime::pilot::{Carry, Pilot};
+use frugal_runtime::schedule::{
+    CONTENT_STATES, COUNT_BUCKETS, MOTION_BUCKETS, SIZE_BUCKETS, largest_box, state_index,
+};
+use frugal_runtime::synth::{ClipSpec, make_clip};
+use frugal_runtime::track::{GrayImage, Pyramid};
+use frugal_runtime::{
+    Access, BBox, BudgetInfo, Bundle, Content, ContentEdges, Decision, Detection, ScheduleAction,
+    ScheduleError, Scheduler, TrackState, Trigger,
+};
+use proptest::prelude::*;
+
+const CNN: ScoreBuckets = ScoreBuckets {
+    c_opt: 0.9,
+    c_ge: 0.6,
+    c_ua: 0.3,
+    t_c: 0.5,
+};
+
+const fn act(variant: u16, period: u32) -> ScheduleAction {
+    ScheduleAction { variant, period }
+}
+
+fn info(budget_ms: f32) -> BudgetInfo {
+    BudgetInfo {
+        budget_ms,
+        slowdown: 1.0,
+        expected_ms: budget_ms * 0.8,
+        p95_ms: budget_ms,
+    }
+}
+
+/// Every state of a table of `variants` variants, in state-index order.
+fn states(variants: u16) -> impl Iterator<Item = (Bucket, u16, Content)> {
+    Bucket::ALL.into_iter().flat_map(move |b| {
+        (0..variants).flat_map(move |v| {
+            (0..CONTENT_STATES).map(move |c| (b, v, Content::from_index(c).unwrap()))
+        })
+    })
+}
+
+/// Two CNN variants, periods 1 and 4, two budgets.
+///
+/// Budget 0: fast motion → (1, 1); else optimal → (0, 4); good enough → (current, 4);
+/// inadequate or miss → (1, 1). Budget 1: always (0, 4). Initial: (1, 1).
+fn bundle_bytes() -> Vec<u8> {
+    let generous = states(2)
+        .map(|(b, v, c)| match b {
+            _ if c.motion == 2 => act(1, 1),
+            Bucket::Optimal => act(0, 4),
+            Bucket::GoodEnough => act(v, 4),
+            Bucket::Inadequate | Bucket::Miss => act(1, 1),
+        })
+        .collect();
+    let frugal = states(2).map(|_| act(0, 4)).collect();
+    base()
+        .schedules(ScheduleSpec {
+            edges: ContentEdges::DEFAULT,
+            periods: vec![1, 4],
+            initial: act(1, 1),
+            budgets: vec![
+                BudgetSpec {
+                    info: info(20.0),
+                    actions: generous,
+                },
+                BudgetSpec {
+                    info: info(5.0),
+                    actions: frugal,
+                },
+            ],
+        })
+        .finish()
+        .unwrap()
+}
+
+fn base() -> BundleWriter {
+    BundleWriter::new(Thresholds::PAPER)
+        .family(FamilySpec {
+            name: "cnn".into(),
+            buckets: CNN,
+        })
+        .variant(VariantSpec::new("small", 0, 1.0, 2.0))
+        .variant(VariantSpec::new("full", 0, 4.0, 8.0))
+        .policy(0, vec![0, 0, 1, 1, 1, 1, 1, 1])
+}
+
+#[test]
+fn content_buckets_follow_the_edges() {
+    let e = ContentEdges::DEFAULT;
+    assert_eq!(e.size_px, [24.0, 64.0]);
+    assert_eq!(e.motion_px, [1.0, 4.0]);
+    assert_eq!(ContentEdges::default(), e);
+    let size = |h| e.content(h, None, 0).size;
+    assert_eq!(size(None), 0);
+    assert_eq!(size(Some(0.0)), 0);
+    assert_eq!(size(Some(23.99)), 0);
+    assert_eq!(size(Some(24.0)), 1, "an edge belongs to the bucket above");
+    assert_eq!(size(Some(63.9)), 1);
+    assert_eq!(size(Some(64.0)), 2);
+    assert_eq!(size(Some(f32::INFINITY)), 2);
+    assert_eq!(size(Some(f32::NAN)), 0);
+    assert_eq!(size(Some(-5.0)), 0);
+    let motion = |m| e.content(None, m, 0).motion;
+    assert_eq!(motion(None), 0);
+    assert_eq!(motion(Some(0.99)), 0);
+    assert_eq!(motion(Some(1.0)), 1);
+    assert_eq!(motion(Some(3.99)), 1);
+    assert_eq!(motion(Some(4.0)), 2);
+    assert_eq!(motion(Some(f32::NAN)), 0);
+    let count = |n| e.content(None, None, n).count;
+    assert_eq!(
+        [count(0), count(1), count(2), count(3), count(usize::MAX)],
+        [0, 1, 2, 2, 2]
+    );
+    // equal edges: nothing in the middle bucket
+    let flat = ContentEdges {
+        size_px: [10.0, 10.0],
+        motion_px: [0.0, 0.0],
+    };
+    assert!(flat.is_valid());
+    assert_eq!(
+        flat.content(Some(9.0), Some(0.0), 1),
+        Content {
+            size: 0,
+            motion: 2,
+            count: 1
+        }
+    );
+    assert_eq!(flat.content(Some(10.0), None, 1).size, 2);
+    for bad in [
+        ContentEdges {
+            size_px: [5.0, 4.0],
+            ..e
+        },
+        ContentEdges {
+            size_px: [-1.0, 4.0],
+            ..e
+        },
+        ContentEdges {
+            motion_px: [0.0, f32::NAN],
+            ..e
+        },
+        ContentEdges {
+            motion_px: [0.0, f32::INFINITY],
+            ..e
+        },
+    ] {
+        assert!(!bad.is_valid(), "{bad:?}");
+    }
+}
+
+#[test]
+fn content_and_state_indices_are_laid_out_as_specified() {
+    assert_eq!(
+        (SIZE_BUCKETS, MOTION_BUCKETS, COUNT_BUCKETS, CONTENT_STATES),
+        (3, 3, 3, 27)
+    );
+    assert_eq!(BUCKET_COUNT * CONTENT_STATES, 108);
+    for i in 0..CONTENT_STATES {
+        let c = Content::from_index(i).unwrap();
+        assert_eq!(c.index(), i);
+        assert_eq!(
+            i,
+            (usize::from(c.size) * 3 + usize::from(c.motion)) * 3 + usize::from(c.count)
+        );
+    }
+    assert_eq!(Content::from_index(CONTENT_STATES), None);
+    assert_eq!(Content::default().index(), 0);
+    // out-of-range buckets count as the last one
+    let big = Content {
+        size: 9,
+        motion: 200,
+        count: 3,
+    };
+    assert_eq!(big.index(), CONTENT_STATES - 1);
+    // states run bucket-major, then variant, then content
+    for (i, (b, v, c)) in states(5).enumerate() {
+        assert_eq!(state_index(b, v, c, 5), i);
+    }
+    let c = Content {
+        size: 1,
+        motion: 2,
+        count: 0,
+    };
+    assert_eq!(
+        state_index(Bucket::Inadequate, 3, c, 5),
+        (2 * 5 + 3) * 27 + 15
+    );
+    assert_eq!(
+        state_index(Bucket::Miss, 4, Content::from_index(26).unwrap(), 5),
+        4 * 5 * 27 - 1
+    );
+    // a variant outside the bundle is outside every table
+    assert_eq!(state_index(Bucket::Optimal, 5, c, 5), usize::MAX);
+    assert_eq!(
+        state_index(Bucket::Miss, u16::MAX, c, usize::MAX),
+        usize::MAX
+    );
+}
+
+#[test]
+fn the_largest_box_is_the_tallest_and_the_first_of_equals() {
+    assert_eq!(largest_box([]), None);
+    let a = BBox::new(0.0, 0.0, 100.0, 10.0);
+    let b = BBox::new(0.0, 0.0, 5.0, 20.0);
+    let c = BBox::new(50.0, 50.0, 55.0, 70.0);
+    assert_eq!(largest_box([a, b, c]), Some(b));
+    assert_eq!(largest_box([c, b, a]), Some(c));
+    let nan = BBox::new(0.0, f32::NAN, 1.0, 1.0);
+    assert_eq!(largest_box([nan, a]), Some(a));
+}
+
+#[test]
+fn the_scheduler_follows_its_tables() {
+    let bytes = bundle_bytes();
+    let bundle = Bundle::parse(&bytes).unwrap();
+    let mut s = Scheduler::new(bundle, 0).unwrap();
+    assert_eq!(
+        (s.budget(), s.current_variant(), s.current_period()),
+        (0, 1, 1)
+    );
+    let sign = |x: f32| Some(BBox::new(x, 10.0, x + 30.0, 40.0)); // 30 px high: size 1
+
+    // frame 0: the initial action
+    assert_eq!(
+        s.step(0, TrackState::Idle),
+        Decision::Detect {
+            variant: 1,
+            reason: Trigger::Start
+        }
+    );
+    assert_eq!(s.current_period(), 1);
+    s.detected(Some(0.95));
+    s.shown(0, 1, sign(10.0));
+    assert_eq!(
+        s.content(),
+        Content {
+            size: 1,
+            motion: 0,
+            count: 1
+        }
+    );
+    let expected = state_index(Bucket::Optimal, 1, s.content(), 2);
+    assert_eq!(s.state(), expected);
+    assert_eq!(s.bucket(), Bucket::Optimal);
+
+    // frame 1: the period (1) has passed; optimal → (0, 4)
+    assert_eq!(
+        s.step(1, TrackState::Held),
+        Decision::Detect {
+            variant: 0,
+            reason: Trigger::Periodic
+        }
+    );
+    assert_eq!((s.current_variant(), s.current_period()), (0, 4));
+    s.detected(Some(0.95));
+    s.shown(1, 1, sign(11.0)); // 1 px per frame: motion bucket 1
+    assert_eq!(
+        s.content(),
+        Content {
+            size: 1,
+            motion: 1,
+            count: 1
+        }
+    );
+
+    // frames 2..=4 are tracked, frame 5 = 1 + 4 is detected
+    for f in 2..5 {
+        assert_eq!(s.step(f, TrackState::Held), Decision::Track, "frame {f}");
+        s.shown(f, 2, sign(10.0 + f as f32));
+    }
+    assert_eq!(s.content().count, 2);
+    assert_eq!(
+        s.step(5, TrackState::Held),
+        Decision::Detect {
+            variant: 0,
+            reason: Trigger::Periodic
+        }
+    );
+    s.detected(Some(0.7)); // good enough: keep the variant, period 4
+    s.shown(5, 1, sign(15.0));
+
+    // frame 6: the tracker lost everything, before the period is up
+    assert_eq!(
+        s.step(6, TrackState::Lost),
+        Decision::Detect {
+            variant: 0,
+            reason: Trigger::TrackerLost
+        }
+    );
+    assert_eq!(s.current_period(), 4);
+    // it found nothing: the next query goes to the full variant, every frame
+    s.detected(None);
+    s.shown(6, 0, None);
+    assert_eq!(
+        s.content(),
+        Content {
+            size: 0,
+            motion: 0,
+            count: 0
+        }
+    );
+    assert_eq!(s.bucket(), Bucket::Miss);
+    // nothing carried: only the period brings the detector back
+    for f in 7..10 {
+        assert_eq!(s.step(f, TrackState::Idle), Decision::Track, "frame {f}");
+        s.shown(f, 0, None);
+    }
+    assert_eq!(
+        s.step(10, TrackState::Idle),
+        Decision::Detect {
+            variant: 1,
+            reason: Trigger::Periodic
+        }
+    );
+    assert_eq!(s.current_period(), 1);
+    s.detected(Some(0.95));
+    // 40 px from the last box shown (frame 5) in 5 frames: 8 px per frame, fast
+    s.shown(10, 1, sign(55.0));
+    assert_eq!(
+        s.content(),
+        Content {
+            size: 1,
+            motion: 2,
+            count: 1
+        }
+    );
+
+    // a budget switch waits for the next query
+    assert_eq!(s.set_budget(2), Err(ScheduleError::NoSuchBudget));
+    assert_eq!(s.budget(), 0);
+    assert_eq!(s.set_budget(1), Ok(()));
+    assert_eq!(
+        (s.budget(), s.current_variant(), s.current_period()),
+        (1, 1, 1)
+    );
+    // fast motion would keep (1, 1) on budget 0; budget 1 says (0, 4)
+    assert_eq!(
+        s.step(11, TrackState::Held),
+        Decision::Detect {
+            variant: 0,
+            reason: Trigger::Periodic
+        }
+    );
+    assert_eq!(s.current_period(), 4);
+    s.set_budget(0).unwrap();
+    s.detected(Some(0.95));
+    s.shown(11, 1, sign(56.0));
+    assert_eq!(s.step(12, TrackState::Held), Decision::Track);
+
+    let stats = s.stats();
+    assert_eq!((stats.frames, stats.detections, stats.queries), (13, 6, 5));
+    s.reset();
+    assert_eq!(
+        (s.current_variant(), s.current_period(), s.stats().frames),
+        (1, 1, 0)
+    );
+    assert!(matches!(
+        s.step(100, TrackState::Held),
+        Decision::Detect {
+            reason: Trigger::Start,
+            ..
+        }
+    ));
+}
+
+#[test]
+fn frame_numbers_wrap() {
+    let bytes = bundle_bytes();
+    let mut s = Scheduler::new(Bundle::parse(&bytes).unwrap(), 1).unwrap();
+    let start = u32::MAX - 1;
+    assert!(matches!(
+        s.step(start, TrackState::Idle),
+        Decision::Detect { .. }
+    ));
+    s.detected(Some(0.95));
+    s.shown(start, 1, Some(BBox::new(0.0, 0.0, 10.0, 10.0)));
+    // initial period 1: the next frame is detected, and budget 1 says (0, 4)
+    assert!(matches!(
+        s.step(start.wrapping_add(1), TrackState::Held),
+        Decision::Detect { .. }
+    ));
+    s.shown(
+        start.wrapping_add(1),
+        1,
+        Some(BBox::new(1.0, 0.0, 11.0, 10.0)),
+    );
+    assert_eq!(s.content().motion, 1);
+    for f in 2..5u32 {
+        assert_eq!(
+            s.step(start.wrapping_add(f), TrackState::Held),
+            Decision::Track
+        );
+    }
+    assert!(matches!(
+        s.step(start.wrapping_add(5), TrackState::Held),
+        Decision::Detect { .. }
+    ));
+}
+
+#[test]
+fn a_bundle_without_schedules_has_no_scheduler() {
+    let bytes = base().finish().unwrap();
+    let bundle = Bundle::parse(&bytes).unwrap();
+    assert!(bundle.schedules().is_none());
+    assert_eq!(
+        Scheduler::new(bundle, 0).unwrap_err(),
+        ScheduleError::NoSchedules
+    );
+    assert!(matches!(
+        Pilot::<'_, 2, 8>::scheduled(bundle, 0),
+        Err(ScheduleError::NoSchedules)
+    ));
+    let mut pilot: Pilot<'_, 2, 8> = Pilot::new(bundle);
+    assert_eq!(pilot.set_budget(0), Err(ScheduleError::NoSchedules));
+    assert!(pilot.controller().is_some() && pilot.scheduler().is_none());
+    let bytes = bundle_bytes();
+    let bundle = Bundle::parse(&bytes).unwrap();
+    assert_eq!(
+        Scheduler::new(bundle, 2).unwrap_err(),
+        ScheduleError::NoSuchBudget
+    );
+    let e: Box<dyn std::error::Error> = Box::new(ScheduleError::NoSchedules);
+    assert!(e.to_string().contains("no schedules"));
+}
+
+/// Flies a scheduled pilot over a textured clip whose sign the "detector" always
+/// finds, moving `speed` px per frame; `cut` frames have no previous pyramid. Returns
+/// each frame's decision and the scheduler's content state after it.
+fn fly_scheduled(
+    frames: usize,
+    budget: usize,
+    cut: &[usize],
+    speed: f32,
+) -> (Vec<Decision>, Vec<Content>) {
+    let spec = ClipSpec {
+        width: 160,
+        height: 120,
+        sign_size: 40.0,
+        growth: 1.0,
+        velocity: (speed, 0.0),
+        shake: 0.0,
+        ..ClipSpec::standard(3, frames)
+    };
+    let clip = make_clip(&spec);
+    let (w, h) = (clip.width, clip.height);
+    let need = Pyramid::required_len(w, h, 3).unwrap();
+    let (mut a, mut b) = (vec![0u8; need], vec![0u8; need]);
+    let bytes = bundle_bytes();
+    let mut pilot: Pilot<'_, 4, 48> = Pilot::scheduled(Bundle::parse(&bytes).unwrap(), 0).unwrap();
+    assert_eq!(pilot.carry(), Carry::Reported);
+    assert!(pilot.controller().is_none());
+    pilot.set_budget(budget).unwrap();
+    let mut prev = Pyramid::new(&mut a, w, h, 3).unwrap();
+    let mut cur = Pyramid::new(&mut b, w, h, 3).unwrap();
+    let (mut decisions, mut contents) = (Vec::new(), Vec::new());
+    for i in 0..frames {
+        cur.build(&GrayImage::new(&clip.frames[i], w, h, w).unwrap())
+            .unwrap();
+        let have_prev = i > 0 && !cut.contains(&i);
+        let decision = pilot.decide(i as u32, have_prev.then_some(&prev), &cur);
+        match decision {
+            Decision::Detect { variant, .. } => {
+                assert_eq!(variant, pilot.current_variant());
+                let found = [
+                    Detection {
+                        bbox: clip.boxes[i],
+                        score: 0.95,
+                        class: 2,
+                    },
+                    // below T_c: neither reported nor counted
+                    Detection {
+                        bbox: BBox::new(0.0, 0.0, 150.0, 110.0),
+                        score: 0.1,
+                        class: 9,
+                    },
+                ];
+                assert_eq!(pilot.detected(&cur, &found), Access::Done);
+                assert_eq!(pilot.tracking(), 1);
+            }
+            Decision::Track => assert_eq!(pilot.tracked().count(), 1),
+        }
+        decisions.push(decision);
+        contents.push(pilot.scheduler().unwrap().content());
+        std::mem::swap(&mut prev, &mut cur);
+    }
+    (decisions, contents)
+}
+
+#[test]
+fn a_scheduled_pilot_detects_every_period_and_reports_what_it_shows() {
+    // budget 1: (0, 4) everywhere after the initial (1, 1)
+    let (run, contents) = fly_scheduled(12, 1, &[], 0.5);
+    let detected: Vec<usize> = (0..run.len())
+        .filter(|&i| matches!(run[i], Decision::Detect { .. }))
+        .collect();
+    assert_eq!(detected, [0, 1, 5, 9], "{run:?}");
+    assert!(matches!(
+        run[0],
+        Decision::Detect {
+            variant: 1,
+            reason: Trigger::Start
+        }
+    ));
+    assert!(matches!(
+        run[9],
+        Decision::Detect {
+            variant: 0,
+            reason: Trigger::Periodic
+        }
+    ));
+    // a 40 px sign moving half a pixel per frame: medium size, still, one box
+    for (i, c) in contents.iter().enumerate() {
+        assert_eq!(
+            *c,
+            Content {
+                size: 1,
+                motion: 0,
+                count: 1
+            },
+            "frame {i}"
+        );
+    }
+}
+
+#[test]
+fn a_scheduled_pilot_measures_motion_on_tracked_frames() {
+    // 5 px per frame is fast (edge 4): from the second frame on, detected or tracked
+    let (run, contents) = fly_scheduled(9, 1, &[], 5.0);
+    assert_eq!(run[2], Decision::Track, "{run:?}");
+    assert_eq!(contents[0].motion, 0, "no earlier box");
+    for (i, c) in contents.iter().enumerate().skip(1) {
+        assert_eq!(
+            *c,
+            Content {
+                size: 1,
+                motion: 2,
+                count: 1
+            },
+            "frame {i}"
+        );
+    }
+}
+
+#[test]
+fn a_scheduled_pilot_detects_again_when_its_tracks_are_lost() {
+    // no previous pyramid on frame 3: the held track cannot follow
+    let (run, _) = fly_scheduled(8, 1, &[3], 0.5);
+    assert!(
+        matches!(
+            run[3],
+            Decision::Detect {
+                variant: 0,
+                reason: Trigger::TrackerLost
+            }
+        ),
+        "{run:?}"
+    );
+    assert_eq!(run[4], Decision::Track);
+    assert!(
+        matches!(
+            run[7],
+            Decision::Detect {
+                reason: Trigger::Periodic,
+                ..
+            }
+        ),
+        "{run:?}"
+    );
+}
+
+#[test]
+fn scheduled_pilot_stats_count_decisions() {
+    let bytes = bundle_bytes();
+    let bundle = Bundle::parse(&bytes).unwrap();
+    let pilot: Pilot<'_, 2, 8> = Pilot::scheduled(bundle, 1).unwrap();
+    assert_eq!(pilot.scheduler().unwrap().budget(), 1);
+    assert_eq!(pilot.stats().frames, 0);
+    assert_eq!(pilot.current_variant(), 1);
+    assert_eq!(pilot.bundle().variant_count(), 2);
+    assert!(matches!(
+        Pilot::<'_, 2, 8>::scheduled(bundle, 3),
+        Err(ScheduleError::NoSuchBudget)
+    ));
+    // the same bundle still flies its policy through the controller
+    let pilot: Pilot<'_, 2, 8> = Pilot::new(bundle);
+    assert_eq!(pilot.current_variant(), 0);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    /// Any sequence of calls: never a panic, and every decision names a variant of the
+    /// bundle with one of its periods.
+    #[test]
+    fn any_call_sequence_stays_in_the_tables(
+        calls in proptest::collection::vec((0u8..4, any::<u32>(), any::<f32>(), 0usize..5), 1..200)
+    ) {
+        let bytes = bundle_bytes();
+        let mut s = Scheduler::new(Bundle::parse(&bytes).unwrap(), 0).unwrap();
+        let mut frame = 0u32;
+        for (op, x, f, n) in calls {
+            frame = frame.wrapping_add(x % 3);
+            match op {
+                0 => {
+                    let track = [TrackState::Idle, TrackState::Held, TrackState::Lost][n % 3];
+                    if let Decision::Detect { variant, .. } = s.step(frame, track) {
+                        prop_assert!(variant < 2);
+                    }
+                }
+                1 => s.detected((n > 0).then_some(f)),
+                2 => s.shown(frame, n, (n > 0).then(|| BBox::new(f, f * 0.5, f + x as f32, f + n as f32 * 9.0))),
+                _ => {
+                    let ok = s.set_budget(n).is_ok();
+                    prop_assert_eq!(ok, n < 2);
+                }
+            }
+            prop_assert!([1, 4].contains(&s.current_period()));
+            prop_assert!(s.state() < 2 * 108);
+        }
+    }
+}
