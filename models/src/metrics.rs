@@ -123,7 +123,9 @@ pub fn average_precision(
         Interpolation::Coco101 => {
             let mut sum = 0.0;
             for k in 0..=100 {
-                let t = k as f64 / 100.0;
+                // numpy's `linspace(0, 1, 101)`, as pycocotools takes it: `k * 0.01`
+                // (0.07 is 0.07000000000000001 there), and exactly 1 at the end
+                let t = if k == 100 { 1.0 } else { k as f64 * 0.01 };
                 // first index with rec >= t (numpy searchsorted, side left)
                 if let Some(i) = rec.iter().position(|&r| r >= t) {
                     sum += prec[i];

@@ -20,7 +20,7 @@ use crate::error::{PolicyError, Result};
 use crate::train::TrainedPolicy;
 use crate::variants::{FamilyInfo, VariantInfo, VariantSource};
 use frugal_runtime::Bundle;
-use frugal_runtime::bundle::write::{BundleWriter, FamilySpec, VariantSpec};
+use frugal_runtime::bundle::write::{BundleWriter, FamilySpec, ScheduleSpec, VariantSpec};
 use frugal_runtime::bundle::{Bucket, Thresholds};
 use sha2::{Digest, Sha256};
 use std::fmt::Write as _;
@@ -68,6 +68,7 @@ pub fn bundle_bytes(
     initial: u16,
     reference: Option<u16>,
     actions: &[u16],
+    schedules: Option<ScheduleSpec>,
     metadata: &[(String, String)],
 ) -> Result<Vec<u8>> {
     let mut w = BundleWriter::new(thresholds);
@@ -97,6 +98,9 @@ pub fn bundle_bytes(
     w = w.policy(initial, actions.to_vec());
     if let Some(r) = reference {
         w = w.reference(r);
+    }
+    if let Some(s) = schedules {
+        w = w.schedules(s);
     }
     for (k, v) in metadata {
         w = w.metadata(k.clone(), v.clone());
@@ -151,6 +155,7 @@ pub fn policy_bundle(policy: &TrainedPolicy, thresholds: Thresholds) -> Result<V
         policy.initial,
         policy.reference,
         &policy.actions,
+        policy.budget.as_ref().map(|b| b.schedule_spec()),
         &policy_metadata(policy),
     )
 }
@@ -240,6 +245,7 @@ pub fn write_bundle(policy: &TrainedPolicy, thresholds: Thresholds, out: &Path) 
         policy.initial,
         policy.reference,
         &policy.actions,
+        policy.budget.as_ref().map(|b| b.schedule_spec()),
         &metadata,
     )?;
     frugal_data::dataset::write_atomic(&root.join(BUNDLE_FILE), &bytes)?;

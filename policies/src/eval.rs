@@ -298,7 +298,7 @@ fn median(v: &mut [f64]) -> f64 {
 }
 
 /// Reported detections of variant `v` on frame `f` of `video`: score ≥ its `T_c`.
-fn reported(log: &ReplayLog, video: &VideoLog, f: usize, v: usize) -> Vec<Detection> {
+pub(crate) fn reported(log: &ReplayLog, video: &VideoLog, f: usize, v: usize) -> Vec<Detection> {
     let t_c = log.buckets(v).t_c;
     video.frames[f].detections[v]
         .iter()
@@ -307,7 +307,7 @@ fn reported(log: &ReplayLog, video: &VideoLog, f: usize, v: usize) -> Vec<Detect
         .collect()
 }
 
-fn truth(video: &VideoLog, f: usize) -> Vec<Truth> {
+pub(crate) fn truth(video: &VideoLog, f: usize) -> Vec<Truth> {
     video.frames[f]
         .truth
         .iter()
@@ -417,6 +417,7 @@ pub fn constant_bundle(log: &ReplayLog, variant: u16, thresholds: Thresholds) ->
         variant,
         Some(variant),
         &actions,
+        None,
         &[("strategy".into(), format!("constant {variant}"))],
     )
 }

@@ -54,6 +54,8 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod budget;
+pub mod budget_eval;
 pub mod bundle;
 pub mod calibrate;
 pub mod error;
@@ -62,6 +64,7 @@ pub mod mdp;
 pub mod plot;
 pub mod replay;
 pub mod report;
+pub mod stream;
 pub mod sweep;
 pub mod train;
 pub mod variants;

@@ -443,3 +443,63 @@ pub fn plot_states(stem: &Path, video: u32, labels: &[String], trace: &[FrameTra
         &|r| states_draw(r, video, labels, trace),
     )
 }
+
+fn lines_draw<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+    axes: (&str, &str),
+    series: &[(String, Vec<(f64, f64)>)],
+) -> std::result::Result<(), String> {
+    root.fill(&WHITE).map_err(s)?;
+    let (x0, x1) = range(series.iter().flat_map(|(_, p)| p.iter().map(|q| q.0)), 0.08);
+    let (y0, y1) = range(series.iter().flat_map(|(_, p)| p.iter().map(|q| q.1)), 0.08);
+    let mut chart = ChartBuilder::on(root)
+        .caption(title, ("sans-serif", 22))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(60)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(s)?;
+    chart
+        .configure_mesh()
+        .x_desc(axes.0)
+        .y_desc(axes.1)
+        .draw()
+        .map_err(s)?;
+    for (i, (name, pts)) in series.iter().enumerate() {
+        let color = Palette99::pick(i).to_rgba();
+        chart
+            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+            .map_err(s)?
+            .label(name.clone())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color));
+        chart
+            .draw_series(pts.iter().map(|&p| Circle::new(p, 4, color.filled())))
+            .map_err(s)?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .border_style(BLACK)
+        .background_style(WHITE.mix(0.8))
+        .draw()
+        .map_err(s)?;
+    Ok(())
+}
+
+/// Points joined by a line per named series (e.g. one strategy's figure at every
+/// budget), axes fitted to the points (not to zero, so that differences of a few
+/// points stay visible).
+pub fn plot_lines(
+    stem: &Path,
+    title: &str,
+    axes: (&str, &str),
+    series: &[(String, Vec<(f64, f64)>)],
+) -> Result<()> {
+    both(
+        stem,
+        (900, 600),
+        &|r| lines_draw(r, title, axes, series),
+        &|r| lines_draw(r, title, axes, series),
+    )
+}

@@ -366,6 +366,10 @@ pub struct TrainedPolicy {
     pub samples: Vec<u64>,
     /// The estimated MDP.
     pub mdp: Mdp,
+    /// Budget + content tables learnt on the same log (`frugal policy budget`), which
+    /// the bundle carries beside the paper's table.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub budget: Option<crate::budget::BudgetPolicies>,
 }
 
 impl TrainedPolicy {
@@ -467,5 +471,6 @@ pub fn solve(
         policy_iteration_agrees: agrees,
         samples,
         mdp,
+        budget: None,
     })
 }

@@ -200,6 +200,60 @@ pub fn largest_box(boxes: impl IntoIterator<Item = BBox>) -> Option<BBox> {
         })
 }
 
+/// The content state of what the last frames showed: the size bucket of the largest
+/// box, the motion bucket of its centre (distance from the centre of the largest box
+/// of the last frame that showed one, divided by the frames elapsed, at least one),
+/// and the count bucket. The [`Scheduler`] keeps one; so can any other scheduler that
+/// needs the same state (the workbench's ApproxDet-style baseline does).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContentTracker {
+    edges: ContentEdges,
+    /// The last frame that showed a box, and that box's centre.
+    last_box: Option<(u32, f32, f32)>,
+    content: Content,
+}
+
+impl ContentTracker {
+    /// Nothing shown yet.
+    pub const fn new(edges: ContentEdges) -> Self {
+        Self {
+            edges,
+            last_box: None,
+            content: Content {
+                size: 0,
+                motion: 0,
+                count: 0,
+            },
+        }
+    }
+
+    /// The current content.
+    pub const fn content(&self) -> Content {
+        self.content
+    }
+
+    /// Frame `frame` showed `count` boxes, the largest of them `largest`
+    /// ([`largest_box`]).
+    pub fn shown(&mut self, frame: u32, count: usize, largest: Option<BBox>) {
+        let height = largest.map(|b| b.height());
+        let centre = largest
+            .map(|b| b.center())
+            .filter(|(x, y)| x.is_finite() && y.is_finite());
+        let motion = match (centre, self.last_box) {
+            (Some((x, y)), Some((then, px, py))) => {
+                let elapsed = frame.wrapping_sub(then).max(1) as f32;
+                let (dx, dy) = (x - px, y - py);
+                Some(libm::sqrtf(dx * dx + dy * dy) / elapsed)
+            }
+            _ => None,
+        };
+        if let Some((x, y)) = centre {
+            self.last_box = Some((frame, x, y));
+        }
+        self.content = self.edges.content(height, motion, count);
+    }
+}
+
 /// A schedule's action: run `variant` now, then track for `period - 1` frames.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ScheduleAction {
@@ -286,11 +340,9 @@ pub struct Scheduler<'a> {
     variant: VariantId,
     period: u32,
     score: Option<f32>,
-    content: Content,
+    content: ContentTracker,
     started: bool,
     last_detection: u32,
-    /// The last frame that showed a box, and that box's centre.
-    last_box: Option<(u32, f32, f32)>,
     stats: Stats,
 }
 
@@ -317,14 +369,9 @@ impl<'a> Scheduler<'a> {
                 1
             },
             score: None,
-            content: Content {
-                size: 0,
-                motion: 0,
-                count: 0,
-            },
+            content: ContentTracker::new(schedules.edges()),
             started: false,
             last_detection: 0,
-            last_box: None,
             stats: Stats {
                 frames: 0,
                 detections: 0,
@@ -381,7 +428,7 @@ impl<'a> Scheduler<'a> {
 
     /// The content state of the last frame reported to [`Scheduler::shown`].
     pub const fn content(&self) -> Content {
-        self.content
+        self.content.content()
     }
 
     /// Counters.
@@ -400,7 +447,12 @@ impl<'a> Scheduler<'a> {
     /// The index of the current state (bucket, current variant, content) in a budget
     /// table ([`state_index`]).
     pub fn state(&self) -> usize {
-        state_index(self.bucket(), self.variant, self.content, self.variants)
+        state_index(
+            self.bucket(),
+            self.variant,
+            self.content.content(),
+            self.variants,
+        )
     }
 
     const fn adopt(&mut self, action: ScheduleAction) {
@@ -454,21 +506,6 @@ impl<'a> Scheduler<'a> {
     /// box of the last frame that showed one, divided by the frames elapsed (at least
     /// one).
     pub fn shown(&mut self, frame: u32, count: usize, largest: Option<BBox>) {
-        let height = largest.map(|b| b.height());
-        let centre = largest
-            .map(|b| b.center())
-            .filter(|(x, y)| x.is_finite() && y.is_finite());
-        let motion = match (centre, self.last_box) {
-            (Some((x, y)), Some((then, px, py))) => {
-                let elapsed = frame.wrapping_sub(then).max(1) as f32;
-                let (dx, dy) = (x - px, y - py);
-                Some(libm::sqrtf(dx * dx + dy * dy) / elapsed)
-            }
-            _ => None,
-        };
-        if let Some((x, y)) = centre {
-            self.last_box = Some((frame, x, y));
-        }
-        self.content = self.schedules.edges().content(height, motion, count);
+        self.content.shown(frame, count, largest);
     }
 }

@@ -6,6 +6,7 @@ use clap::{Parser, Subcommand};
 use std::ffi::OsString;
 
 pub mod bench;
+pub mod budget;
 pub mod bundle;
 pub mod compress;
 pub mod data;

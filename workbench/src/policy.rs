@@ -49,6 +49,35 @@ enum PolicyCommand {
     /// (the KLT tracker runs on the real frames), write eval.json/csv and the plots,
     /// and per sign class per_class.json/csv and the paper's KUL table (kul.md).
     Eval(EvalArgs),
+    /// Learn the budget + content policy (one table per latency budget) on the log's
+    /// training videos, attach it to the policy (so `frugal bundle write` ships it), and
+    /// stream every budget strategy on the test videos (and on held-out logs) on a
+    /// simulated clock: sAP, deadline misses, latency; budget.json/csv/md and plots.
+    Budget(BudgetArgs),
+}
+
+/// Options of `frugal policy budget`.
+#[derive(Args, Debug)]
+struct BudgetArgs {
+    /// The replay log (its training videos teach the policy, its test videos score it).
+    #[arg(long)]
+    log: PathBuf,
+    /// The trained paper policy (policy.json) to attach the budget tables to.
+    #[arg(long)]
+    policy: PathBuf,
+    /// Output folder (policy.json with the budget tables, budget.json|csv|md, plots).
+    #[arg(long)]
+    out: PathBuf,
+    /// The dataset folder (default: the one recorded in the log).
+    #[arg(long)]
+    data: Option<PathBuf>,
+    /// Budget settings (TOML or JSON: budgets_ms, slowdown, periods, switch_cost, …).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// More replay logs of the same variants to score on (their test videos), e.g.
+    /// videos of a seed the policy never saw; each gets `heldout-<i>/` in the output.
+    #[arg(long = "heldout")]
+    heldout: Vec<PathBuf>,
 }
 
 /// Options of `frugal policy record`.
@@ -383,6 +412,14 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
             println!("wrote {}", a.out.join("policy.json").display());
             Ok(())
         }
+        PolicyCommand::Budget(a) => crate::budget::run(
+            &a.log,
+            &a.policy,
+            &a.out,
+            a.data.as_deref(),
+            a.config.as_deref(),
+            &a.heldout,
+        ),
         PolicyCommand::Eval(a) => {
             let log = ReplayLog::load(&a.log)?;
             let policy = TrainedPolicy::load(&a.policy)?;

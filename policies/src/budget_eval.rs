@@ -1,0 +1,573 @@
+//! The budget strategies, streamed on a simulated clock and scored by streaming AP
+//! (`frugal policy budget`).
+//!
+//! Same variants, same videos, same clock for every strategy, at every budget:
+//!
+//! 1. `static` / `static+tracker`: the best static variant under the budget (the most
+//!    accurate, detecting every frame on the training videos, whose detection fits the
+//!    budget; the cheapest when none does), detecting every frame, or every `N` frames
+//!    with the tracker between (the shortest `N` that fits);
+//! 2. `random+tracker`: at every decision, an action drawn uniformly from those that
+//!    fit the budget;
+//! 3. `approxdet`: an ApproxDet-style scheduler (Xu et al., SenSys 2020): every 8
+//!    frames, the action most accurate on the training videos in the current content
+//!    whose latency is at most `budget / 1.3`;
+//! 4. `budget`: the learnt budget + content policy ([`crate::budget`]), run by the
+//!    runtime's own [`Scheduler`] over a bundle holding its tables;
+//! 5. `oracle`: per frame, the cheapest variant that gets the frame right (the replay's
+//!    truth), detecting every frame.
+//!
+//! The paper's MDP (confidence bucket × variant, no budget) keeps its offline
+//! evaluation in [`crate::eval`].
+
+use crate::budget::{BudgetPolicies, Perceiver, TrackState, largest, shown_f1, truth};
+use crate::error::{PolicyError, Result};
+use crate::eval::{Scenario, TrackerCost, correct};
+use crate::replay::{Frames, ReplayLog, VideoLog};
+use crate::stream::{StreamRun, StreamTiming, arrivals, sap, simulate, streaming_images, timing};
+use frugal_models::metrics::{ImageResult, Interpolation, evaluate};
+use frugal_runtime::schedule::{ContentEdges, ContentTracker, Scheduler};
+use frugal_runtime::{Bundle, Decision, Detection};
+use rand::{Rng, SeedableRng};
+use serde::{Deserialize, Serialize};
+
+/// A budget strategy.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BudgetStrategy {
+    /// The best static variant under the budget, every frame.
+    Static,
+    /// The same variant with the tracker, every `N` frames.
+    StaticTracker,
+    /// A random action that fits the budget at every decision, with the tracker.
+    RandomTracker,
+    /// The ApproxDet-style scheduler.
+    Approxdet,
+    /// The learnt budget + content policy.
+    Budget,
+    /// The per-frame oracle.
+    Oracle,
+}
+
+impl BudgetStrategy {
+    /// Every strategy, baselines first.
+    pub const ALL: [BudgetStrategy; 6] = [
+        BudgetStrategy::Static,
+        BudgetStrategy::StaticTracker,
+        BudgetStrategy::RandomTracker,
+        BudgetStrategy::Approxdet,
+        BudgetStrategy::Budget,
+        BudgetStrategy::Oracle,
+    ];
+
+    /// Short name.
+    pub fn name(self) -> &'static str {
+        match self {
+            BudgetStrategy::Static => "static",
+            BudgetStrategy::StaticTracker => "static+tracker",
+            BudgetStrategy::RandomTracker => "random+tracker",
+            BudgetStrategy::Approxdet => "approxdet",
+            BudgetStrategy::Budget => "budget",
+            BudgetStrategy::Oracle => "oracle",
+        }
+    }
+
+    fn tracker(self) -> bool {
+        !matches!(self, BudgetStrategy::Static | BudgetStrategy::Oracle)
+    }
+}
+
+/// Who decides, frame by frame.
+enum Brain<'a> {
+    /// The runtime's scheduler over a bundle with the budget tables.
+    Scheduler(Scheduler<'a>),
+    /// A fixed, random or ApproxDet-style choice of (variant, period).
+    Period {
+        choose: Chooser,
+        action: usize,
+        started: bool,
+        last_detection: u32,
+        last_schedule: u32,
+        content: ContentTracker,
+    },
+    /// The oracle.
+    Oracle { fallback: usize },
+}
+
+enum Chooser {
+    Fixed(usize),
+    Random(rand_chacha::ChaCha8Rng, Vec<usize>),
+    Approxdet,
+}
+
+struct Ctx<'a> {
+    pol: &'a BudgetPolicies,
+    budget_ms: f64,
+    log: &'a ReplayLog,
+    video: &'a VideoLog,
+    iou: f32,
+}
+
+impl Brain<'_> {
+    /// `Some(variant)` to detect, `None` to track.
+    fn decide(&mut self, f: usize, state: TrackState, ctx: &Ctx<'_>) -> Option<usize> {
+        let frame = f as u32;
+        match self {
+            Brain::Scheduler(s) => match s.step(frame, state) {
+                Decision::Detect { variant, .. } => Some(usize::from(variant)),
+                Decision::Track => None,
+            },
+            Brain::Oracle { fallback } => Some(
+                (0..ctx.log.variants.len())
+                    .filter(|&v| correct(ctx.log, ctx.video, f, v, ctx.iou))
+                    .min_by(|&a, &b| {
+                        ctx.log.variants[a]
+                            .latency_ms
+                            .total_cmp(&ctx.log.variants[b].latency_ms)
+                    })
+                    .unwrap_or(*fallback),
+            ),
+            Brain::Period {
+                choose,
+                action,
+                started,
+                last_detection,
+                last_schedule,
+                content,
+            } => {
+                let p_n = ctx.pol.config.periods.len();
+                let every = match choose {
+                    Chooser::Approxdet => ctx.pol.config.approxdet_every,
+                    _ => 0,
+                };
+                let period = ctx.pol.config.periods[*action % p_n];
+                let due = !*started
+                    || state == TrackState::Lost
+                    || frame.wrapping_sub(*last_detection) >= period;
+                if !due {
+                    return None;
+                }
+                let reschedule = match choose {
+                    Chooser::Fixed(_) => !*started,
+                    Chooser::Random(..) => true,
+                    Chooser::Approxdet => !*started || frame.wrapping_sub(*last_schedule) >= every,
+                };
+                if reschedule {
+                    *action = match choose {
+                        Chooser::Fixed(a) => *a,
+                        Chooser::Random(rng, fits) => fits[rng.random_range(0..fits.len())],
+                        Chooser::Approxdet => ctx.pol.approxdet(ctx.budget_ms, content.content()),
+                    };
+                    *last_schedule = frame;
+                }
+                *started = true;
+                *last_detection = frame;
+                Some(*action / p_n)
+            }
+        }
+    }
+
+    fn detected(&mut self, score: Option<f32>) {
+        if let Brain::Scheduler(s) = self {
+            s.detected(score);
+        }
+    }
+
+    fn shown(&mut self, f: usize, shown: &[Detection]) {
+        match self {
+            Brain::Scheduler(s) => s.shown(f as u32, shown.len(), largest(shown)),
+            Brain::Period { content, .. } => content.shown(f as u32, shown.len(), largest(shown)),
+            Brain::Oracle { .. } => {}
+        }
+    }
+}
+
+/// One strategy streamed over one video.
+#[derive(Clone, Debug)]
+pub struct BudgetRun {
+    /// The video.
+    pub video: u32,
+    /// The stream.
+    pub run: StreamRun,
+    /// Per processed frame, the variant that detected it (`None`: tracked).
+    pub detect: Vec<Option<u16>>,
+}
+
+/// Stream `strategy` under budget `k` of `pol` over `video`. `bundle` holds the
+/// budget tables (for [`BudgetStrategy::Budget`]).
+#[allow(clippy::too_many_arguments)]
+pub fn stream_strategy(
+    log: &ReplayLog,
+    video: &VideoLog,
+    frames: &dyn Frames,
+    cost: TrackerCost,
+    pol: &BudgetPolicies,
+    k: usize,
+    bundle: &[u8],
+    strategy: BudgetStrategy,
+    iou: f32,
+) -> Result<BudgetRun> {
+    let cfg = &pol.config;
+    let budget_ms = cfg.budgets_ms[k];
+    let edges = ContentEdges {
+        size_px: cfg.size_px,
+        motion_px: cfg.motion_px,
+    };
+    let period = |choose| Brain::Period {
+        choose,
+        action: 0,
+        started: false,
+        last_detection: 0,
+        last_schedule: 0,
+        content: ContentTracker::new(edges),
+    };
+    let st = pol.static_under(budget_ms);
+    let mut brain = match strategy {
+        BudgetStrategy::Static => period(Chooser::Fixed(cfg.action(st, 0))),
+        BudgetStrategy::StaticTracker => period(Chooser::Fixed(
+            cfg.action(st, pol.period_under(st, budget_ms)),
+        )),
+        BudgetStrategy::RandomTracker => {
+            let fits = pol.allowed(budget_ms);
+            let rng = rand_chacha::ChaCha8Rng::seed_from_u64(
+                cfg.seed ^ u64::from(video.id) ^ (k as u64) << 32,
+            );
+            period(Chooser::Random(rng, fits))
+        }
+        BudgetStrategy::Approxdet => period(Chooser::Approxdet),
+        BudgetStrategy::Budget => {
+            let b = Bundle::parse(bundle).map_err(|e| PolicyError::Bundle {
+                path: "<memory>".into(),
+                message: e.to_string(),
+            })?;
+            Brain::Scheduler(Scheduler::new(b, k).map_err(|e| PolicyError::Bundle {
+                path: "<memory>".into(),
+                message: e.to_string(),
+            })?)
+        }
+        BudgetStrategy::Oracle => Brain::Oracle { fallback: st },
+    };
+    let ctx = Ctx {
+        pol,
+        budget_ms,
+        log,
+        video,
+        iou,
+    };
+    let mut p = Perceiver::new(log, video, frames, cost, cfg.max_tracks);
+    let tracker = strategy.tracker();
+    let mut detect = Vec::new();
+    let arr = arrivals(video.frames.len(), cfg.fps);
+    let run = simulate(&arr, cfg.rule, cfg.slowdown, |f| {
+        let (state, mut ms) = if tracker {
+            p.track(f)?
+        } else {
+            (TrackState::Idle, 0.0)
+        };
+        let shown = match brain.decide(f, state, &ctx) {
+            Some(v) => {
+                let (dets, score, dms) = if tracker {
+                    p.detect(f, v)?
+                } else {
+                    (
+                        crate::budget::reported(log, video, f, v),
+                        video.frames[f].best_score(v),
+                        log.variants[v].latency_ms,
+                    )
+                };
+                ms += dms;
+                brain.detected(score);
+                detect.push(Some(v as u16));
+                dets
+            }
+            None => {
+                detect.push(None);
+                p.tracked()
+            }
+        };
+        brain.shown(f, &shown);
+        Ok((shown, ms))
+    })?;
+    Ok(BudgetRun {
+        video: video.id,
+        run,
+        detect,
+    })
+}
+
+/// One strategy at one budget on one scenario.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BudgetScore {
+    /// Budget, device ms per frame.
+    pub budget_ms: f64,
+    /// Scenario (`all` for every video).
+    pub scenario: String,
+    /// Strategy.
+    pub strategy: String,
+    /// Videos.
+    pub videos: usize,
+    /// Streaming AP at IoU 0.5.
+    pub sap50: f64,
+    /// Streaming AP averaged over IoU 0.50:0.95.
+    pub sap: f64,
+    /// F1 of the processed frames' outputs against their own frames (no clock).
+    pub f1: f64,
+    /// Static's device ms per frame over this one's (same budget and scenario).
+    pub speedup_vs_static: f64,
+    /// Detections run.
+    pub detections: usize,
+    /// Clock figures.
+    pub timing: StreamTiming,
+}
+
+fn score_runs(
+    log: &ReplayLog,
+    videos: &[&VideoLog],
+    runs: &[&BudgetRun],
+    fps: f64,
+    iou: f32,
+) -> (f64, f64, f64, usize, StreamTiming) {
+    let mut images: Vec<ImageResult> = Vec::new();
+    let mut offline: Vec<ImageResult> = Vec::new();
+    let arrs: Vec<Vec<f64>> = videos
+        .iter()
+        .map(|v| arrivals(v.frames.len(), fps))
+        .collect();
+    for ((video, r), arr) in videos.iter().zip(runs).zip(&arrs) {
+        let tr: Vec<_> = (0..video.frames.len()).map(|f| truth(video, f)).collect();
+        images.extend(streaming_images(arr, &tr, &r.run));
+        for o in &r.run.outputs {
+            offline.push(ImageResult {
+                detections: o.shown.clone(),
+                truth: tr[o.frame].clone(),
+            });
+        }
+    }
+    let classes = log.classes.max(1);
+    let (s50, s) = sap(&images, classes);
+    let f1 = evaluate(
+        &offline,
+        classes,
+        iou,
+        f32::NEG_INFINITY,
+        Interpolation::AllPoint,
+    )
+    .f1;
+    let detections = runs
+        .iter()
+        .flat_map(|r| &r.detect)
+        .filter(|d| d.is_some())
+        .count();
+    let pairs: Vec<(&[f64], &StreamRun)> = arrs
+        .iter()
+        .map(Vec::as_slice)
+        .zip(runs.iter().map(|r| &r.run))
+        .collect();
+    (s50, s, f1, detections, timing(&pairs))
+}
+
+/// Score every (budget, strategy) run per scenario and overall.
+pub fn budget_scores(
+    log: &ReplayLog,
+    videos: &[&VideoLog],
+    pol: &BudgetPolicies,
+    runs: &[(usize, BudgetStrategy, Vec<BudgetRun>)],
+    iou: f32,
+) -> Vec<BudgetScore> {
+    let mut groups: Vec<(String, Vec<u32>)> = Scenario::ALL
+        .iter()
+        .map(|s| {
+            (
+                s.name().to_owned(),
+                videos
+                    .iter()
+                    .filter(|v| Scenario::of(v) == *s)
+                    .map(|v| v.id)
+                    .collect::<Vec<_>>(),
+            )
+        })
+        .filter(|(_, ids)| !ids.is_empty())
+        .collect();
+    groups.push(("all".into(), videos.iter().map(|v| v.id).collect()));
+    let mut out = Vec::new();
+    for (k, &budget) in pol.config.budgets_ms.iter().enumerate() {
+        for (name, ids) in &groups {
+            let sel_videos: Vec<&VideoLog> = videos
+                .iter()
+                .copied()
+                .filter(|v| ids.contains(&v.id))
+                .collect();
+            let mut group: Vec<BudgetScore> = runs
+                .iter()
+                .filter(|(kk, _, _)| *kk == k)
+                .map(|(_, s, rs)| {
+                    let sel: Vec<&BudgetRun> = sel_videos
+                        .iter()
+                        .filter_map(|v| rs.iter().find(|r| r.video == v.id))
+                        .collect();
+                    let (sap50, sap, f1, detections, timing) =
+                        score_runs(log, &sel_videos, &sel, pol.config.fps, iou);
+                    BudgetScore {
+                        budget_ms: budget,
+                        scenario: name.clone(),
+                        strategy: s.name().into(),
+                        videos: sel.len(),
+                        sap50,
+                        sap,
+                        f1,
+                        speedup_vs_static: 1.0,
+                        detections,
+                        timing,
+                    }
+                })
+                .collect();
+            if let Some(st) = group
+                .iter()
+                .find(|s| s.strategy == "static")
+                .map(|s| s.timing.device_ms_per_frame)
+            {
+                for s in &mut group {
+                    s.speedup_vs_static = if s.timing.device_ms_per_frame > 0.0 {
+                        st / s.timing.device_ms_per_frame
+                    } else {
+                        f64::INFINITY
+                    };
+                }
+            }
+            out.extend(group);
+        }
+    }
+    out
+}
+
+/// Per-frame F1 helper re-exported for reports.
+pub fn frame_f1(shown: &[Detection], video: &VideoLog, f: usize, iou: f32) -> f64 {
+    shown_f1(shown, &truth(video, f), iou)
+}
+
+/// Every strategy at every budget over `videos`: the runs, keyed by budget index.
+#[allow(clippy::type_complexity)]
+pub fn stream_all(
+    log: &ReplayLog,
+    videos: &[&VideoLog],
+    frames: &dyn Frames,
+    cost: TrackerCost,
+    pol: &BudgetPolicies,
+    bundle: &[u8],
+    iou: f32,
+    progress: &dyn Fn(),
+) -> Result<Vec<(usize, BudgetStrategy, Vec<BudgetRun>)>> {
+    let mut out = Vec::new();
+    for k in 0..pol.config.budgets_ms.len() {
+        for s in BudgetStrategy::ALL {
+            let runs = videos
+                .iter()
+                .map(|v| {
+                    let r = stream_strategy(log, v, frames, cost, pol, k, bundle, s, iou);
+                    progress();
+                    r
+                })
+                .collect::<Result<Vec<_>>>()?;
+            out.push((k, s, runs));
+        }
+    }
+    Ok(out)
+}
+
+/// The scores as CSV.
+pub fn budget_csv(scores: &[BudgetScore]) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::from(
+        "budget_ms,scenario,strategy,videos,sap50,sap,f1,speedup_vs_static,detections,frames,processed,skipped,deadline_misses,p50_latency_ms,p95_latency_ms,device_ms_per_frame,p95_device_ms\n",
+    );
+    for r in scores {
+        let t = &r.timing;
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{:.6},{:.6},{:.6},{:.4},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3}",
+            r.budget_ms,
+            r.scenario,
+            r.strategy,
+            r.videos,
+            r.sap50,
+            r.sap,
+            r.f1,
+            r.speedup_vs_static,
+            r.detections,
+            t.frames,
+            t.processed,
+            t.skipped,
+            t.deadline_misses,
+            t.p50_latency_ms,
+            t.p95_latency_ms,
+            t.device_ms_per_frame,
+            t.p95_device_ms
+        );
+    }
+    s
+}
+
+/// The overall rows as a Markdown table, one block per budget.
+pub fn budget_table(scores: &[BudgetScore]) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::from(
+        "| budget | strategy | sAP@0.5 | sAP@[.5:.95] | F1 | speed-up vs static | device ms/frame | skipped | deadline misses | P50 / P95 latency, ms |\n|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in scores.iter().filter(|r| r.scenario == "all") {
+        let t = &r.timing;
+        let _ = writeln!(
+            s,
+            "| {} ms | {} | {:.1} | {:.1} | {:.3} | {:.2}× | {:.1} | {} / {} | {} | {:.0} / {:.0} |",
+            r.budget_ms,
+            r.strategy,
+            100.0 * r.sap50,
+            100.0 * r.sap,
+            r.f1,
+            r.speedup_vs_static,
+            t.device_ms_per_frame,
+            t.skipped,
+            t.frames,
+            t.deadline_misses,
+            t.p50_latency_ms,
+            t.p95_latency_ms
+        );
+    }
+    s
+}
+
+/// The two figures: sAP@0.5 against the budget per strategy, and speed-up against F1
+/// per strategy (one point per budget).
+pub fn plot_budget(stem: &std::path::Path, scores: &[BudgetScore]) -> Result<()> {
+    let all: Vec<&BudgetScore> = scores.iter().filter(|r| r.scenario == "all").collect();
+    let series = |f: &dyn Fn(&BudgetScore) -> (f64, f64)| -> Vec<(String, Vec<(f64, f64)>)> {
+        BudgetStrategy::ALL
+            .iter()
+            .map(|s| {
+                let mut pts: Vec<(f64, f64)> = all
+                    .iter()
+                    .filter(|r| r.strategy == s.name())
+                    .map(|r| f(r))
+                    .collect();
+                pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+                (s.name().to_string(), pts)
+            })
+            .collect()
+    };
+    let dir = stem.parent().unwrap_or(std::path::Path::new("."));
+    let name = stem
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    crate::plot::plot_lines(
+        &dir.join(format!("{name}-sap")),
+        "streaming AP against the latency budget",
+        ("budget, device ms per frame", "sAP@0.5 (%)"),
+        &series(&|r| (r.budget_ms, 100.0 * r.sap50)),
+    )?;
+    crate::plot::plot_lines(
+        &dir.join(format!("{name}-speed-f1")),
+        "speed against accuracy, one point per budget",
+        ("speed-up vs static (device time per frame)", "F1 @ IoU 0.5"),
+        &series(&|r| (r.speedup_vs_static, r.f1)),
+    )
+}

@@ -1,0 +1,280 @@
+//! The budget + content policy: its tables respect the budget, the ApproxDet-style
+//! baseline is what it says, the runtime's `Pilot` runs the tables exactly as the
+//! streaming evaluation does, and a ±15 % change of every latency moves little.
+
+use super::fixture::log3;
+use frugal_data::Split;
+use frugal_policies::budget::{BudgetConfig, BudgetPolicies, train_budget};
+use frugal_policies::budget_eval::{BudgetStrategy, budget_scores, stream_all, stream_strategy};
+use frugal_policies::eval::{EvalConfig, TRACK_POINTS, TrackerCost};
+use frugal_policies::replay::{Frames, VideoLog};
+use frugal_policies::stream::FrameRule;
+use frugal_policies::{PolicyConfig, train::train};
+use frugal_runtime::pilot::Pilot;
+use frugal_runtime::schedule::Content;
+use frugal_runtime::track::{Pyramid, TrackerParams, rgb_to_gray};
+use frugal_runtime::{Bundle, Decision, Detection};
+
+/// Fixed tracker costs, so the tests do not depend on the machine's speed.
+const COST: TrackerCost = TrackerCost {
+    pyramid_ms: 0.3,
+    track_ms: 0.2,
+    init_ms: 0.1,
+    samples: (0, 0, 0),
+};
+
+/// The fixture variants (2, 5, 10 ms) on a device 3× slower, three budgets.
+fn config() -> BudgetConfig {
+    BudgetConfig {
+        budgets_ms: vec![33.0, 12.0, 5.0],
+        slowdown: 3.0,
+        ..BudgetConfig::default()
+    }
+}
+
+fn trained() -> (
+    frugal_policies::ReplayLog,
+    frugal_policies::replay::MemoryFrames,
+    BudgetPolicies,
+) {
+    let (log, frames) = log3();
+    let pol = train_budget(&log, &frames, COST, &config(), 0.5).unwrap();
+    (log, frames, pol)
+}
+
+#[test]
+fn the_budget_policy_never_takes_an_action_over_budget_while_one_fits() {
+    let (_, _, pol) = trained();
+    assert_eq!(pol.policies.len(), 3);
+    for p in &pol.policies {
+        let fits = pol.action_ms.iter().any(|&ms| ms <= p.budget_ms);
+        let cheapest = pol.action_ms.iter().copied().fold(f64::INFINITY, f64::min);
+        for &a in &p.actions {
+            let ms = pol.action_ms[usize::from(a)];
+            if fits {
+                assert!(
+                    ms <= p.budget_ms,
+                    "budget {}: action {a} costs {ms} ms",
+                    p.budget_ms
+                );
+            } else {
+                assert_eq!(ms, cheapest);
+            }
+        }
+        // its rollouts on the training videos keep the budget on average
+        assert!(p.expected_ms <= p.budget_ms + 1e-9 || !fits, "{p:?}");
+    }
+    // a looser budget buys at least as much accuracy on the training videos
+    let f1: Vec<f64> = pol.policies.iter().map(|p| p.train_f1).collect();
+    assert!(f1[0] >= f1[1] - 1e-9 && f1[1] >= f1[2] - 1e-9, "{f1:?}");
+    // the tightest budget (5 ms on a 3× device: 1.7 ms of a 2-10 ms variant per
+    // frame) can only be kept by detecting every few frames
+    let p_n = pol.config.periods.len();
+    assert!(
+        pol.policies[2]
+            .actions
+            .iter()
+            .all(|&a| pol.config.periods[usize::from(a) % p_n] > 1)
+    );
+}
+
+#[test]
+fn the_approxdet_baseline_takes_the_most_accurate_action_under_budget_over_headroom() {
+    let (_, _, mut pol) = trained();
+    // a hand table: 3 variants × 4 periods; costs per frame and accuracies made up
+    let p_n = pol.config.periods.len();
+    let a_n = 3 * p_n;
+    pol.action_ms = (0..a_n)
+        .map(|a| [6.0, 15.0, 30.0][a / p_n] / pol.config.periods[a % p_n] as f64)
+        .collect();
+    pol.approx_f1 = vec![0.0; frugal_runtime::schedule::CONTENT_STATES * a_n];
+    let small_fast = Content {
+        size: 0,
+        motion: 2,
+        count: 1,
+    };
+    let c = small_fast.index();
+    for a in 0..a_n {
+        // accuracy rises with the variant and falls with the period
+        pol.approx_f1[c * a_n + a] = 0.5 + 0.1 * (a / p_n) as f64 - 0.05 * (a % p_n) as f64;
+    }
+    // budget 13: cap 10 ms; fits: v0 any period, v1 with N >= 2 (7.5), v2 with N >= 4 (7.5)
+    // most accurate among them: v2 N=4 (0.7 - 0.1 = 0.6) vs v1 N=2 (0.6 - 0.05 = 0.55)
+    let a = pol.approxdet(13.0, small_fast);
+    assert_eq!((a / p_n, pol.config.periods[a % p_n]), (2, 4));
+    // without the headroom v2 N=2 (15 ms) would still not fit at 13; at 20 ms it would
+    // (cap 15.4): 0.65
+    let a = pol.approxdet(20.0, small_fast);
+    assert_eq!((a / p_n, pol.config.periods[a % p_n]), (2, 2));
+    // nothing fits: the cheapest action
+    let a = pol.approxdet(0.5, small_fast);
+    assert_eq!((a / p_n, pol.config.periods[a % p_n]), (0, 8));
+}
+
+/// The runtime's scheduled `Pilot`, fed the replay's detections on the replay's
+/// frames, decides and shows exactly what the streaming evaluation of the budget
+/// strategy does, frame by frame, at every budget.
+#[test]
+fn the_runtime_pilot_runs_the_budget_policy_as_the_evaluation() {
+    let (log, frames, pol) = trained();
+    let mut policy = train(&log, &PolicyConfig::default()).unwrap();
+    policy.budget = Some(BudgetPolicies {
+        config: BudgetConfig {
+            rule: FrameRule::Queue, // every frame processed, in order
+            ..pol.config.clone()
+        },
+        ..pol
+    });
+    let pol = policy.budget.as_ref().unwrap();
+    let bytes = frugal_policies::bundle::policy_bundle(&policy, EvalConfig::default().thresholds())
+        .unwrap();
+    let levels = TrackerParams::DEFAULT.lk.levels;
+    let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
+    let (mut detections, mut tracked) = (0, 0);
+    for k in 0..pol.config.budgets_ms.len() {
+        for video in &videos {
+            let run = stream_strategy(
+                &log,
+                video,
+                &frames,
+                COST,
+                pol,
+                k,
+                &bytes,
+                BudgetStrategy::Budget,
+                0.5,
+            )
+            .unwrap();
+            assert_eq!(run.run.outputs.len(), video.frames.len());
+            let (w, h) = (video.width as usize, video.height as usize);
+            let need = Pyramid::required_len(w, h, levels).unwrap();
+            let (mut a, mut b, mut gray) = (vec![0u8; need], vec![0u8; need], vec![0u8; w * h]);
+            let mut pilot: Pilot<'_, 4, TRACK_POINTS> =
+                Pilot::scheduled(Bundle::parse(&bytes).unwrap(), k)
+                    .unwrap()
+                    .with_max_tracks(pol.config.max_tracks);
+            let mut prev = Pyramid::new(&mut a, w, h, levels).unwrap();
+            let mut cur = Pyramid::new(&mut b, w, h, levels).unwrap();
+            for (fi, f) in video.frames.iter().enumerate() {
+                let img = frames.load(video.id, f.index).unwrap();
+                cur.build(&rgb_to_gray(&img.view(), &mut gray).unwrap())
+                    .unwrap();
+                let shown: Vec<Detection> =
+                    match pilot.decide(fi as u32, (fi > 0).then_some(&prev), &cur) {
+                        Decision::Detect { variant, .. } => {
+                            detections += 1;
+                            assert_eq!(
+                                run.detect[fi],
+                                Some(variant),
+                                "budget {k} video {} frame {fi}",
+                                video.id
+                            );
+                            let mut found: Vec<Detection> = f.detections[usize::from(variant)]
+                                .iter()
+                                .map(|d| d.detection())
+                                .collect();
+                            found.sort_by(|a, b| b.score.total_cmp(&a.score));
+                            let _ = pilot.detected(&cur, &found);
+                            let t_c = pilot.report_score();
+                            found.into_iter().filter(|d| d.score >= t_c).collect()
+                        }
+                        Decision::Track => {
+                            tracked += 1;
+                            assert_eq!(
+                                run.detect[fi], None,
+                                "budget {k} video {} frame {fi}",
+                                video.id
+                            );
+                            pilot.tracked().collect()
+                        }
+                    };
+                let key = |d: &Detection| {
+                    (
+                        d.class,
+                        d.bbox.x1.to_bits(),
+                        d.bbox.y1.to_bits(),
+                        d.bbox.x2.to_bits(),
+                    )
+                };
+                let mut mine: Vec<_> = shown.iter().map(key).collect();
+                let mut theirs: Vec<_> = run.run.outputs[fi].shown.iter().map(key).collect();
+                mine.sort_unstable();
+                theirs.sort_unstable();
+                assert_eq!(mine, theirs, "budget {k} video {} frame {fi}", video.id);
+                std::mem::swap(&mut prev, &mut cur);
+            }
+        }
+    }
+    assert!(
+        detections > 0 && tracked > 0,
+        "both kinds of frame: {detections} / {tracked}"
+    );
+}
+
+/// Every variant's latency changed by ±15 % (as on another machine) moves the
+/// budget policy's streaming figures little. Stated bounds: at every budget, the
+/// policy's sAP@0.5 on the test videos moves by at most 10 points and its device time
+/// per frame stays within the (perturbed) budget whenever an action fits it.
+#[test]
+fn a_fifteen_percent_change_of_every_latency_moves_the_budget_policy_little() {
+    let (log, frames) = log3();
+    let cfg = config();
+    let mut policy = train(&log, &PolicyConfig::default()).unwrap();
+    let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
+    let figures = |log: &frugal_policies::ReplayLog,
+                   policy: &mut frugal_policies::TrainedPolicy| {
+        let pol = train_budget(log, &frames, COST, &cfg, 0.5).unwrap();
+        policy.budget = Some(pol.clone());
+        policy.variants = log.variants.clone();
+        let bytes =
+            frugal_policies::bundle::policy_bundle(policy, EvalConfig::default().thresholds())
+                .unwrap();
+        let runs = stream_all(log, &videos, &frames, COST, &pol, &bytes, 0.5, &|| {}).unwrap();
+        let scores = budget_scores(log, &videos, &pol, &runs, 0.5);
+        let fits: Vec<bool> = cfg
+            .budgets_ms
+            .iter()
+            .map(|&b| pol.action_ms.iter().any(|&ms| ms <= b))
+            .collect();
+        (scores, fits)
+    };
+    let (base, _) = figures(&log, &mut policy);
+    for factors in [
+        [0.85, 1.0, 1.15],
+        [1.15, 1.0, 0.85],
+        [1.15, 1.15, 1.15],
+        [0.85, 0.85, 0.85],
+        [1.15, 0.85, 1.15],
+    ] {
+        let mut moved = log.clone();
+        for (v, f) in moved.variants.iter_mut().zip(factors) {
+            v.latency_ms *= f;
+        }
+        let (scores, fits) = figures(&moved, &mut policy);
+        for (k, &budget) in cfg.budgets_ms.iter().enumerate() {
+            let pick = |s: &[frugal_policies::budget_eval::BudgetScore]| {
+                s.iter()
+                    .find(|r| {
+                        r.scenario == "all" && r.strategy == "budget" && r.budget_ms == budget
+                    })
+                    .cloned()
+                    .unwrap()
+            };
+            let (a, b) = (pick(&base), pick(&scores));
+            assert!(
+                (a.sap50 - b.sap50).abs() <= 0.10,
+                "budget {budget} ×{factors:?}: sAP {} → {}",
+                a.sap50,
+                b.sap50
+            );
+            if fits[k] {
+                // a little slack for the segments the test videos end early
+                assert!(
+                    b.timing.device_ms_per_frame <= budget * 1.15,
+                    "budget {budget} ×{factors:?}: {} ms per frame",
+                    b.timing.device_ms_per_frame
+                );
+            }
+        }
+    }
+}

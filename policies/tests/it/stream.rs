@@ -1,0 +1,169 @@
+//! Streaming AP against an independent peer, on timestamped outputs of a simulated
+//! perception loop.
+
+use frugal_models::metrics::{ImageResult, Truth};
+use frugal_policies::stream::{FrameRule, arrivals, sap, simulate, streaming_images};
+use frugal_runtime::{BBox, Detection};
+use rand::{Rng, SeedableRng};
+use std::io::Write;
+use std::process::{Command, Stdio};
+
+fn xywh(b: &BBox) -> [f64; 4] {
+    let (x1, y1, x2, y2) = (
+        f64::from(b.x1),
+        f64::from(b.y1),
+        f64::from(b.x2),
+        f64::from(b.y2),
+    );
+    [x1, y1, x2 - x1, y2 - y1]
+}
+
+/// Moving objects of 3 classes over 3 videos; a noisy detector whose compute time
+/// varies from 5 to 90 ms, streamed at 30 fps with the latest-frame rule.
+#[test]
+fn stream_sap_matches_pycocotools() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(23);
+    let classes = 3;
+    let mut all_images: Vec<ImageResult> = Vec::new();
+    let mut videos_json = Vec::new();
+    for _video in 0..3 {
+        let n = 45;
+        // 1-3 objects, each with a start box and a velocity
+        let objects: Vec<(u16, [f32; 4], [f32; 2])> = (0..rng.random_range(1..=3))
+            .map(|_| {
+                let (x, y) = (
+                    rng.random_range(0.0..300.0f32),
+                    rng.random_range(0.0..200.0f32),
+                );
+                let (w, h) = (
+                    rng.random_range(12.0..80.0f32),
+                    rng.random_range(12.0..80.0f32),
+                );
+                let v = [
+                    rng.random_range(-6.0..6.0f32),
+                    rng.random_range(-3.0..3.0f32),
+                ];
+                (rng.random_range(0..classes) as u16, [x, y, w, h], v)
+            })
+            .collect();
+        let truth: Vec<Vec<Truth>> = (0..n)
+            .map(|f| {
+                objects
+                    .iter()
+                    .filter(|_| f % 17 != 5) // some frames without truth
+                    .map(|&(class, [x, y, w, h], [vx, vy])| {
+                        let (x, y) = (x + vx * f as f32, y + vy * f as f32);
+                        Truth {
+                            class,
+                            bbox: BBox {
+                                x1: x,
+                                y1: y,
+                                x2: x + w,
+                                y2: y + h,
+                            },
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        let arr = arrivals(n, 30.0);
+        let mut det_rng = rand_chacha::ChaCha8Rng::seed_from_u64(rng.random());
+        let run = simulate(&arr, FrameRule::Latest, 1.0, |f| {
+            let mut shown: Vec<Detection> = Vec::new();
+            for t in &truth[f] {
+                if det_rng.random_bool(0.15) {
+                    continue; // a miss
+                }
+                let j = |r: &mut rand_chacha::ChaCha8Rng| r.random_range(-4.0..4.0f32);
+                let class = if det_rng.random_bool(0.1) {
+                    (t.class + 1) % classes as u16
+                } else {
+                    t.class
+                };
+                shown.push(Detection {
+                    bbox: BBox {
+                        x1: t.bbox.x1 + j(&mut det_rng),
+                        y1: t.bbox.y1 + j(&mut det_rng),
+                        x2: t.bbox.x2 + j(&mut det_rng),
+                        y2: t.bbox.y2 + j(&mut det_rng),
+                    },
+                    score: det_rng.random_range(0.3..1.0),
+                    class,
+                });
+            }
+            if det_rng.random_bool(0.3) {
+                let (x, y) = (
+                    det_rng.random_range(0.0..400.0f32),
+                    det_rng.random_range(0.0..250.0f32),
+                );
+                shown.push(Detection {
+                    bbox: BBox {
+                        x1: x,
+                        y1: y,
+                        x2: x + 30.0,
+                        y2: y + 25.0,
+                    },
+                    score: det_rng.random_range(0.3..0.9),
+                    class: det_rng.random_range(0..classes) as u16,
+                });
+            }
+            Ok((shown, det_rng.random_range(5.0..90.0)))
+        })
+        .unwrap();
+        assert!(
+            run.skipped > 0,
+            "the case should exercise the latest-frame rule"
+        );
+        all_images.extend(streaming_images(&arr, &truth, &run));
+        videos_json.push(serde_json::json!({
+            "frames": arr.iter().zip(&truth).map(|(t, tr)| serde_json::json!({
+                "time_ms": t,
+                "truth": tr.iter().map(|g| serde_json::json!({"category_id": g.class, "bbox": xywh(&g.bbox)})).collect::<Vec<_>>(),
+            })).collect::<Vec<_>>(),
+            "outputs": run.outputs.iter().map(|o| serde_json::json!({
+                "finish_ms": o.finish_ms,
+                "detections": o.shown.iter().map(|d| serde_json::json!({
+                    "category_id": d.class, "bbox": xywh(&d.bbox), "score": f64::from(d.score),
+                })).collect::<Vec<_>>(),
+            })).collect::<Vec<_>>(),
+        }));
+    }
+    let (ours50, ours) = sap(&all_images, classes);
+    assert!(
+        ours50 > 0.05 && ours50 < 0.95,
+        "a case far from 0 and 1: {ours50}"
+    );
+
+    let python =
+        std::env::var_os("FRUGAL_PYTHON").expect("FRUGAL_PYTHON (set by cargo xtask setup)");
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tools/sap_peer.py");
+    let mut child = Command::new(python)
+        .arg(script)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start the Python peer");
+    let case =
+        serde_json::json!({"categories": (0..classes).collect::<Vec<_>>(), "videos": videos_json});
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(case.to_string().as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "the pycocotools peer failed");
+    let theirs: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let (t50, t) = (
+        theirs["sap50"].as_f64().unwrap(),
+        theirs["sap"].as_f64().unwrap(),
+    );
+    assert!(
+        (ours50 - t50).abs() < 1e-9,
+        "sAP@0.5: frugal {ours50}, pycocotools {t50}"
+    );
+    assert!(
+        (ours - t).abs() < 1e-9,
+        "sAP@[.5:.95]: frugal {ours}, pycocotools {t}"
+    );
+}

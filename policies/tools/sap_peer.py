@@ -1,0 +1,66 @@
+"""Independent streaming-AP peer for frugal's `policies::stream`.
+
+Reads timestamped outputs and ground truth as JSON on stdin:
+
+    {"categories": [0, 1, ...],
+     "videos": [{"frames": [{"time_ms": t, "truth": [{"category_id": c, "bbox": [x, y, w, h]}]}],
+                 "outputs": [{"finish_ms": t, "detections": [{"category_id": c, "bbox": [x, y, w, h], "score": s}]}]}]}
+
+pairs every ground-truth frame with the latest output whose finish_ms <= the frame's
+time_ms (of outputs finishing at the same time, the later one listed), and scores the
+pairs with pycocotools' COCOeval (bbox, area "all", 100 detections per image). Prints
+{"sap50": AP@0.5, "sap": AP@[.5:.95]} as JSON with full precision.
+"""
+import contextlib
+import io
+import json
+import sys
+
+import numpy as np
+from pycocotools.coco import COCO
+from pycocotools.cocoeval import COCOeval
+
+
+def main():
+    case = json.load(sys.stdin)
+    images, annotations, results = [], [], []
+    image_id = 0
+    for video in case["videos"]:
+        outputs = video["outputs"]
+        for frame in video["frames"]:
+            image_id += 1
+            images.append({"id": image_id, "width": 10000, "height": 10000})
+            for t in frame["truth"]:
+                x, y, w, h = t["bbox"]
+                annotations.append({"id": len(annotations) + 1, "image_id": image_id,
+                                    "category_id": t["category_id"], "bbox": [x, y, w, h],
+                                    "area": w * h, "iscrowd": 0})
+            used = None
+            for o in outputs:
+                if o["finish_ms"] <= frame["time_ms"]:
+                    used = o
+            if used is not None:
+                for d in used["detections"]:
+                    results.append({"image_id": image_id, "category_id": d["category_id"],
+                                    "bbox": d["bbox"], "score": d["score"]})
+    if not results or not annotations:
+        print(json.dumps({"sap50": 0.0, "sap": 0.0}))
+        return
+    gt = COCO()
+    gt.dataset = {"images": images, "annotations": annotations,
+                  "categories": [{"id": c} for c in case["categories"]]}
+    with contextlib.redirect_stdout(io.StringIO()):
+        gt.createIndex()
+        dt = gt.loadRes(results)
+        ev = COCOeval(gt, dt, "bbox")
+        ev.evaluate()
+        ev.accumulate()
+    precision = ev.eval["precision"][:, :, :, 0, -1]  # IoU x recall x class, area all, 100 dets
+    def mean(p):
+        p = p[p > -1]
+        return float(np.mean(p)) if p.size else 0.0
+    print(json.dumps({"sap50": mean(precision[0]), "sap": mean(precision)}))
+
+
+if __name__ == "__main__":
+    main()

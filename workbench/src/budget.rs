@@ -1,0 +1,130 @@
+//! `frugal policy budget`: learn the budget + content policy and stream every budget
+//! strategy on a simulated clock (crate `frugal-policies`, modules `budget`,
+//! `budget_eval`, `stream`).
+
+use anyhow::Context;
+use frugal_data::{Dataset, Split};
+use frugal_policies::budget::{BudgetConfig, train_budget};
+use frugal_policies::budget_eval::{
+    BudgetScore, budget_csv, budget_scores, budget_table, plot_budget, stream_all,
+};
+use frugal_policies::eval::{EvalConfig, Strategy, run_all};
+use frugal_policies::replay::{DatasetFrames, VideoLog};
+use frugal_policies::{ReplayLog, TrainedPolicy};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
+
+fn bar(len: usize, msg: &str) -> ProgressBar {
+    let pb = ProgressBar::new(len as u64);
+    if let Ok(style) = ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len}, eta {eta}") {
+        pb.set_style(style);
+    }
+    pb.set_message(msg.to_string());
+    pb
+}
+
+/// Score `log`'s test videos and write `budget.json|csv|md` and the plots into `out`.
+fn score_log(
+    log: &ReplayLog,
+    data: &Path,
+    policy: &TrainedPolicy,
+    cost: frugal_policies::eval::TrackerCost,
+    out: &Path,
+) -> anyhow::Result<Vec<BudgetScore>> {
+    let pol = policy
+        .budget
+        .as_ref()
+        .context("the policy has no budget tables")?;
+    if log.variants.iter().map(|v| &v.name).ne(pol.variants.iter()) {
+        anyhow::bail!(
+            "{}: its variants are not the budget policy's ({})",
+            data.display(),
+            pol.variants.join(", ")
+        );
+    }
+    let ds = Dataset::load(data)?;
+    let frames = DatasetFrames::new(&ds);
+    let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
+    if videos.is_empty() {
+        anyhow::bail!("{}: the log has no test videos", data.display());
+    }
+    let bundle =
+        frugal_policies::bundle::policy_bundle(policy, EvalConfig::default().thresholds())?;
+    let n = videos.len()
+        * pol.config.budgets_ms.len()
+        * frugal_policies::budget_eval::BudgetStrategy::ALL.len();
+    let pb = bar(n, "streaming");
+    let runs = stream_all(log, &videos, &frames, cost, pol, &bundle, 0.5, &|| {
+        pb.inc(1)
+    })?;
+    pb.finish_and_clear();
+    let scores = budget_scores(log, &videos, pol, &runs, 0.5);
+    std::fs::create_dir_all(out)?;
+    frugal_data::dataset::write_json_atomic(&out.join("budget.json"), &scores)?;
+    frugal_data::dataset::write_atomic(&out.join("budget.csv"), budget_csv(&scores).as_bytes())?;
+    frugal_data::dataset::write_atomic(&out.join("budget.md"), budget_table(&scores).as_bytes())?;
+    plot_budget(&out.join("budget"), &scores)?;
+    Ok(scores)
+}
+
+/// Run `frugal policy budget`.
+pub fn run(
+    log_path: &Path,
+    policy_path: &Path,
+    out: &Path,
+    data: Option<&Path>,
+    config: Option<&Path>,
+    heldout: &[PathBuf],
+) -> anyhow::Result<()> {
+    let log = ReplayLog::load(log_path)?;
+    let mut policy = TrainedPolicy::load(policy_path)?;
+    let cfg: BudgetConfig = match config {
+        Some(p) => frugal_policies::error::read_toml_or_json(p)?,
+        None => BudgetConfig::default(),
+    };
+    cfg.check(config.unwrap_or(Path::new("<defaults>")))?;
+    let root = data
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| log.dataset.clone());
+    let ds = Dataset::load(&root)?;
+    let frames = DatasetFrames::new(&ds);
+    let train: Vec<&VideoLog> = log.split(Split::Train).collect();
+    if train.is_empty() {
+        anyhow::bail!("{}: the log has no training videos", log_path.display());
+    }
+    // the tracker's medians, measured on the training videos as `policy eval` does
+    let cost = run_all(
+        &log,
+        &policy,
+        &train,
+        Some(&frames),
+        &EvalConfig::default(),
+        &[Strategy::StaticTracker],
+    )?
+    .cost;
+    println!(
+        "tracker medians: pyramid {:.3} ms, track {:.3} ms/object, init {:.3} ms/object",
+        cost.pyramid_ms, cost.track_ms, cost.init_ms
+    );
+    let pol = train_budget(&log, &frames, cost, &cfg, 0.5)?;
+    for p in &pol.policies {
+        println!(
+            "budget {} ms ({} ×{}): λ {:.3}, expected {:.2} ms/frame (P95 over videos {:.2}), training F1/frame {:.3}",
+            p.budget_ms, cfg.device, cfg.slowdown, p.lambda, p.expected_ms, p.p95_ms, p.train_f1
+        );
+    }
+    policy.budget = Some(pol);
+    std::fs::create_dir_all(out)?;
+    policy.save(&out.join("policy.json"))?;
+    let scores = score_log(&log, &root, &policy, cost, out)?;
+    print!("{}", budget_table(&scores));
+    for (i, h) in heldout.iter().enumerate() {
+        let hl = ReplayLog::load(h)?;
+        let dir = out.join(format!("heldout-{}", i + 1));
+        let scores = score_log(&hl, &hl.dataset.clone(), &policy, cost, &dir)?;
+        println!("\nheld out: {}", h.display());
+        print!("{}", budget_table(&scores));
+    }
+    println!("wrote {}", out.display());
+    Ok(())
+}
