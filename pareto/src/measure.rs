@@ -1,9 +1,14 @@
 //! Accuracy and latency of exported variants through ONNX Runtime, measured in one
 //! interleaved pass: for every validation frame, every variant detects it in turn and
 //! is timed, so the shared machine's load changes hit all variants alike.
-use crate::front::{Point, dominators, front};
+//!
+//! The fronts in the report are noise-aware ([`front_within_noise`]): each variant's
+//! latency noise is [`Latency::noise_ms`] of its timed runs, and each accuracy's
+//! standard error comes from a bootstrap over the validation videos
+//! ([`BOOTSTRAP_RESAMPLES`] resamples, seed [`BOOTSTRAP_SEED`]).
+use crate::front::{NoisyPoint, Point, covered_by, front, front_within_noise, merged_into};
 use crate::plot::{FrontPlot, plot_front};
-use crate::stats::Latency;
+use crate::stats::{Latency, cluster_resamples, std_dev};
 use crate::variants::{VariantDir, write_variants_file};
 use crate::{ParetoError, measure};
 use frugal_data::{Dataset, FrameRecord, Split};
@@ -14,8 +19,19 @@ use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// An accuracy metric: key, axis label, getter.
-type Metric = (&'static str, &'static str, fn(&VariantResult) -> f64);
+/// An accuracy metric: key, axis label, getter of the value and of its standard error.
+type Metric = (
+    &'static str,
+    &'static str,
+    fn(&VariantResult) -> f64,
+    fn(&VariantResult) -> f64,
+);
+
+/// Bootstrap resamples of the validation videos behind each standard error.
+pub const BOOTSTRAP_RESAMPLES: usize = 200;
+
+/// Seed of the bootstrap (the same resamples for every variant and every run).
+pub const BOOTSTRAP_SEED: u64 = 0x5EED_F00D;
 
 /// Bins of the confidence histograms (over `[0, 1]`).
 pub const CONFIDENCE_BINS: usize = 20;
@@ -58,18 +74,35 @@ pub struct VariantResult {
     pub f1: f64,
     /// Mean IoU of true positives.
     pub mean_iou: f64,
+    /// Standard error of `map`: standard deviation over bootstrap resamples of the
+    /// validation videos (0 with a single video).
+    pub map_se: f64,
+    /// Standard error of `f1`, the same way.
+    pub f1_se: f64,
+    /// Standard error of `mean_iou`, the same way.
+    pub mean_iou_se: f64,
     /// Precision.
     pub precision: f64,
     /// Recall.
     pub recall: f64,
     /// Latency per frame (whole detector, ONNX Runtime, fixed threads).
     pub latency: Latency,
+    /// Latency differences up to this are noise ([`Latency::noise_ms`]).
+    pub latency_noise_ms: f64,
     /// Per scenario `"<clutter>-clutter/<light>-light"`: top-score distribution.
     pub confidence: BTreeMap<String, ConfidenceHistogram>,
-    /// On the front of each metric (`map`, `f1`, `iou`).
+    /// On the noise-aware front of each metric (`map`, `f1`, `iou`).
     pub on_front: BTreeMap<String, bool>,
-    /// Per metric: the variants that dominate this one.
+    /// On the plain front of each metric (non-dominated, however small the margin).
+    pub on_plain_front: BTreeMap<String, bool>,
+    /// Per metric: the front variants that make this one redundant, fastest first:
+    /// neither clearly slower nor clearly less accurate than it. Empty on the front;
+    /// never empty off it.
     pub dominated_by: BTreeMap<String, Vec<String>>,
+    /// Per metric: the front variant this one was merged into, being within noise of
+    /// it in both latency and accuracy (`null` on the front, and off it when every
+    /// front variant that covers it is clearly better in one coordinate).
+    pub merged_into: BTreeMap<String, Option<String>>,
 }
 
 /// What `frugal pareto` is asked to do.
@@ -100,12 +133,38 @@ pub struct ParetoOptions {
 pub struct ParetoReport {
     /// Validation frames scored per variant.
     pub frames: usize,
+    /// Validation videos those frames come from (the bootstrap's clusters).
+    pub videos: usize,
+    /// Bootstrap resamples behind the standard errors.
+    pub bootstrap_resamples: usize,
+    /// Relative floor of the latency noise ([`crate::stats::LATENCY_NOISE_FLOOR`]).
+    pub latency_noise_floor: f64,
     /// ONNX Runtime threads.
     pub threads: usize,
     /// Every variant.
     pub variants: Vec<VariantResult>,
-    /// Per metric: names on the front, fastest first.
+    /// Per metric: names on the noise-aware front, fastest first (`variants.json`
+    /// lists the `map` one).
     pub fronts: BTreeMap<String, Vec<String>>,
+    /// Per metric: names on the plain front, fastest first, for comparison.
+    pub plain_fronts: BTreeMap<String, Vec<String>>,
+}
+
+/// Standard errors of (mAP, F1, mean IoU) over `resamples` of `images` (each a list
+/// of indices into `images`): their standard deviations.
+fn bootstrap_se(
+    images: &[ImageResult],
+    resamples: &[Vec<usize>],
+    score: impl Fn(&[ImageResult]) -> [f64; 3],
+) -> [f64; 3] {
+    let mut values: [Vec<f64>; 3] = Default::default();
+    for r in resamples {
+        let picked: Vec<ImageResult> = r.iter().map(|&i| images[i].clone()).collect();
+        for (v, x) in values.iter_mut().zip(score(&picked)) {
+            v.push(x);
+        }
+    }
+    values.map(|v| std_dev(&v))
 }
 
 pub(crate) fn write_json<T: Serialize>(path: &Path, v: &T) -> Result<(), ParetoError> {
@@ -147,6 +206,50 @@ fn histogram(scores: &[Option<f32>]) -> ConfidenceHistogram {
     let n = h.frames - h.no_detection;
     h.mean_top_score = if n > 0 { sum / n as f64 } else { 0.0 };
     h
+}
+
+/// The fronts of one metric (`key`; `get` its value, `get_se` its standard error):
+/// fills each variant's `on_front`, `on_plain_front`, `dominated_by` and
+/// `merged_into` under `key`, and returns the noise-aware front and the plain one
+/// (indices into `out`, fastest first).
+fn mark_fronts(
+    out: &mut [VariantResult],
+    key: &str,
+    get: fn(&VariantResult) -> f64,
+    get_se: fn(&VariantResult) -> f64,
+) -> (Vec<usize>, Vec<usize>) {
+    let noisy: Vec<NoisyPoint> = out
+        .iter()
+        .map(|r| NoisyPoint {
+            accuracy: get(r),
+            accuracy_se: get_se(r),
+            latency: r.latency.median_ms,
+            latency_noise: r.latency_noise_ms,
+        })
+        .collect();
+    let points: Vec<Point> = noisy
+        .iter()
+        .map(|p| Point {
+            accuracy: p.accuracy,
+            latency: p.latency,
+        })
+        .collect();
+    let f = front_within_noise(&noisy);
+    let plain = front(&points);
+    let by = covered_by(&noisy, &f);
+    let merged = merged_into(&noisy, &f);
+    let names: Vec<String> = out.iter().map(|r| r.name.clone()).collect();
+    for (i, r) in out.iter_mut().enumerate() {
+        r.on_front.insert(key.into(), f.contains(&i));
+        r.on_plain_front.insert(key.into(), plain.contains(&i));
+        r.dominated_by.insert(
+            key.into(),
+            by[i].iter().map(|&j| names[j].clone()).collect(),
+        );
+        r.merged_into
+            .insert(key.into(), merged[i].map(|j| names[j].clone()));
+    }
+    (f, plain)
 }
 
 /// Measure every variant in `opts.variants` and write `pareto.json`, `pareto.csv`,
@@ -230,6 +333,29 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
         }
     }
     let num_classes = dets.first().map_or(1, |d| d.spec().num_classes);
+    let score = |images: &[ImageResult]| {
+        let s = evaluate(
+            images,
+            num_classes,
+            0.5,
+            opts.score_threshold,
+            Interpolation::AllPoint,
+        );
+        [s.map, s.f1, s.mean_iou]
+    };
+    // Frames of one video are correlated: resample videos, not frames.
+    let video_of: Vec<u32> = frames.iter().map(|f| f.video).collect();
+    let videos = video_of
+        .iter()
+        .collect::<std::collections::BTreeSet<_>>()
+        .len();
+    let resamples = cluster_resamples(&video_of, BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED);
+    if opts.progress {
+        eprintln!(
+            "pareto: standard errors from {} resamples of {videos} validation videos",
+            resamples.len()
+        );
+    }
     let mut out = Vec::new();
     for (i, v) in variants.iter().enumerate() {
         let s = evaluate(
@@ -239,6 +365,7 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
             opts.score_threshold,
             Interpolation::AllPoint,
         );
+        let [map_se, f1_se, mean_iou_se] = bootstrap_se(&results[i], &resamples, score);
         let latency = Latency::from_samples(&samples[i])
             .ok_or_else(|| ParetoError::Input("no timings".into()))?;
         let r = &v.record;
@@ -254,51 +381,46 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
             map: s.map,
             f1: s.f1,
             mean_iou: s.mean_iou,
+            map_se,
+            f1_se,
+            mean_iou_se,
             precision: s.precision,
             recall: s.recall,
             latency,
+            latency_noise_ms: latency.noise_ms(),
             confidence: tops[i]
                 .iter()
                 .map(|(k, v)| (k.clone(), histogram(v)))
                 .collect(),
             on_front: BTreeMap::new(),
+            on_plain_front: BTreeMap::new(),
             dominated_by: BTreeMap::new(),
+            merged_into: BTreeMap::new(),
         });
     }
     std::fs::create_dir_all(&opts.out).map_err(|e| ParetoError::io(&opts.out, e))?;
-    let mut fronts = BTreeMap::new();
+    let (mut fronts, mut plain_fronts) = (BTreeMap::new(), BTreeMap::new());
     let metrics: [Metric; 3] = [
-        ("map", "mAP@0.5", |r| r.map),
-        ("f1", "F1", |r| r.f1),
-        ("iou", "mean IoU", |r| r.mean_iou),
+        ("map", "mAP@0.5", |r| r.map, |r| r.map_se),
+        ("f1", "F1", |r| r.f1, |r| r.f1_se),
+        ("iou", "mean IoU", |r| r.mean_iou, |r| r.mean_iou_se),
     ];
     let lat_label = format!(
         "latency per frame, median ms (ONNX Runtime, {} thread(s))",
         opts.threads
     );
-    for (key, label, get) in metrics {
-        let points: Vec<Point> = out
+    for (key, label, get, get_se) in metrics {
+        let (f, plain) = mark_fronts(&mut out, key, get, get_se);
+        let labelled: Vec<(String, Point)> = out
             .iter()
-            .map(|r| Point {
-                accuracy: get(r),
-                latency: r.latency.median_ms,
+            .map(|r| {
+                let p = Point {
+                    accuracy: get(r),
+                    latency: r.latency.median_ms,
+                };
+                (r.name.clone(), p)
             })
             .collect();
-        let mut f = front(&points);
-        f.sort_by(|a, b| points[*a].latency.total_cmp(&points[*b].latency));
-        let doms = dominators(&points);
-        for (i, r) in out.iter_mut().enumerate() {
-            r.on_front.insert(key.into(), f.contains(&i));
-            r.dominated_by.insert(
-                key.into(),
-                doms[i]
-                    .iter()
-                    .map(|&j| variants[j].record.name.clone())
-                    .collect(),
-            );
-        }
-        let labelled: Vec<(String, Point)> =
-            out.iter().map(|r| r.name.clone()).zip(points).collect();
         let stem = opts.out.join(format!("pareto_{key}"));
         plot_front(
             &stem,
@@ -314,12 +436,23 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
             key.to_string(),
             f.iter().map(|&i| out[i].name.clone()).collect::<Vec<_>>(),
         );
+        plain_fronts.insert(
+            key.to_string(),
+            plain
+                .iter()
+                .map(|&i| out[i].name.clone())
+                .collect::<Vec<_>>(),
+        );
     }
     let report = ParetoReport {
         frames: n,
+        videos,
+        bootstrap_resamples: resamples.len(),
+        latency_noise_floor: crate::stats::LATENCY_NOISE_FLOOR,
         threads: opts.threads,
         variants: out,
         fronts,
+        plain_fronts,
     };
     write_json(&opts.out.join("pareto.json"), &report)?;
     let conf: BTreeMap<&str, &BTreeMap<String, ConfidenceHistogram>> = report
@@ -347,12 +480,12 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
 /// The table as CSV (one row per variant).
 pub fn csv(r: &ParetoReport) -> String {
     let mut s = String::from(
-        "name,parent,technique,input,parameters,nonzero_parameters,file_bytes,map,f1,mean_iou,precision,recall,latency_median_ms,latency_p90_ms,front_map,front_f1,front_iou,dominated_by_map\n",
+        "name,parent,technique,input,parameters,nonzero_parameters,file_bytes,map,f1,mean_iou,map_se,f1_se,mean_iou_se,precision,recall,latency_median_ms,latency_p90_ms,latency_spread_ms,latency_noise_ms,front_map,front_f1,front_iou,plain_front_map,dominated_by_map,merged_into_map\n",
     );
     for v in &r.variants {
         let tech = v.technique.to_string().replace(',', ";").replace('"', "");
         s += &format!(
-            "{},{},{},{},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.3},{:.3},{},{},{},{}\n",
+            "{},{},{},{},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.3},{:.3},{:.3},{:.3},{},{},{},{},{},{}\n",
             v.name,
             v.parent.clone().unwrap_or_default(),
             tech,
@@ -363,14 +496,21 @@ pub fn csv(r: &ParetoReport) -> String {
             v.map,
             v.f1,
             v.mean_iou,
+            v.map_se,
+            v.f1_se,
+            v.mean_iou_se,
             v.precision,
             v.recall,
             v.latency.median_ms,
             v.latency.p90_ms,
+            v.latency.spread_ms,
+            v.latency_noise_ms,
             v.on_front["map"],
             v.on_front["f1"],
             v.on_front["iou"],
+            v.on_plain_front["map"],
             v.dominated_by["map"].join(" "),
+            v.merged_into["map"].as_deref().unwrap_or_default(),
         );
     }
     s
@@ -379,23 +519,39 @@ pub fn csv(r: &ParetoReport) -> String {
 /// A text table for the terminal.
 pub fn table(r: &ParetoReport) -> String {
     let mut s = format!(
-        "{:<14} {:<34} {:>9} {:>6} {:>6} {:>6} {:>8} {:>8} {:>5}\n",
-        "variant", "technique", "params", "mAP", "F1", "IoU", "med ms", "p90 ms", "front"
+        "{:<14} {:<34} {:>9} {:>6} {:>6} {:>6} {:>6} {:>8} {:>8} {:>7} {:<5}\n",
+        "variant",
+        "technique",
+        "params",
+        "mAP",
+        "± se",
+        "F1",
+        "IoU",
+        "med ms",
+        "p90 ms",
+        "noise",
+        "front"
     );
     for v in &r.variants {
         let mut tech = v.technique.to_string().replace('"', "");
         tech.truncate(34);
         s += &format!(
-            "{:<14} {:<34} {:>9} {:>6.3} {:>6.3} {:>6.3} {:>8.2} {:>8.2} {:>5}\n",
+            "{:<14} {:<34} {:>9} {:>6.3} {:>6.3} {:>6.3} {:>6.3} {:>8.2} {:>8.2} {:>7.2} {}\n",
             v.name,
             tech,
             v.parameters,
             v.map,
+            v.map_se,
             v.f1,
             v.mean_iou,
             v.latency.median_ms,
             v.latency.p90_ms,
-            if v.on_front["map"] { "yes" } else { "" }
+            v.latency_noise_ms,
+            match (v.on_front["map"], &v.merged_into["map"]) {
+                (true, _) => "yes".to_string(),
+                (false, Some(m)) => format!("= {m}"),
+                (false, None) => String::new(),
+            }
         );
     }
     s
@@ -404,6 +560,199 @@ pub fn table(r: &ParetoReport) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use frugal_models::metrics::Truth;
+    use frugal_runtime::{BBox, Detection};
+
+    fn image(hit: bool) -> ImageResult {
+        let truth = BBox {
+            x1: 10.0,
+            y1: 10.0,
+            x2: 30.0,
+            y2: 30.0,
+        };
+        let found = if hit {
+            truth
+        } else {
+            BBox {
+                x1: 60.0,
+                y1: 60.0,
+                x2: 80.0,
+                y2: 80.0,
+            }
+        };
+        ImageResult {
+            detections: vec![Detection {
+                bbox: found,
+                score: 0.9,
+                class: 0,
+            }],
+            truth: vec![Truth {
+                class: 0,
+                bbox: truth,
+            }],
+        }
+    }
+
+    fn score(images: &[ImageResult]) -> [f64; 3] {
+        let s = evaluate(images, 1, 0.5, 0.5, Interpolation::AllPoint);
+        [s.map, s.f1, s.mean_iou]
+    }
+
+    #[test]
+    fn bootstrap_over_videos_gives_an_error_only_when_videos_differ() {
+        // video 1 found every sign, video 2 none, video 3 half
+        let images: Vec<ImageResult> = [true, true, false, false, true, false]
+            .iter()
+            .map(|&h| image(h))
+            .collect();
+        let videos = [1, 1, 2, 2, 3, 3];
+        let resamples = cluster_resamples(&videos, BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED);
+        let [map_se, f1_se, iou_se] = bootstrap_se(&images, &resamples, score);
+        assert!(map_se > 0.05 && f1_se > 0.05, "{map_se} {f1_se}");
+        // every true positive is an exact match, so the mean IoU is 1, or 0 in the
+        // resamples that drew video 2 three times (1 in 27)
+        assert!(iou_se > 0.0 && iou_se < 0.5, "{iou_se}");
+        assert_eq!(
+            bootstrap_se(&images, &resamples, score),
+            [map_se, f1_se, iou_se]
+        );
+        // one video: every resample is the whole set, no error
+        let one = cluster_resamples(&[4; 6], BOOTSTRAP_RESAMPLES, BOOTSTRAP_SEED);
+        assert_eq!(bootstrap_se(&images, &one, score), [0.0; 3]);
+        // frames that all agree: no error however many videos
+        let same: Vec<ImageResult> = (0..6).map(|_| image(true)).collect();
+        assert!(
+            bootstrap_se(&same, &resamples, score)
+                .iter()
+                .all(|&se| se < 1e-12)
+        );
+    }
+
+    fn variant(name: &str, ms: f64, map: f64, se: f64) -> VariantResult {
+        let latency = Latency {
+            median_ms: ms,
+            p90_ms: ms * 1.04,
+            min_ms: ms * 0.95,
+            runs: 720,
+            p10_ms: ms * 0.97,
+            spread_ms: ms * 0.035,
+        };
+        VariantResult {
+            name: name.into(),
+            parent: None,
+            technique: serde_json::json!({ "kind": "base" }),
+            dir: PathBuf::from(name),
+            input: "480×270".into(),
+            parameters: 100,
+            nonzero_parameters: 100,
+            file_bytes: 400,
+            map,
+            f1: map - 0.05,
+            mean_iou: 0.9,
+            map_se: se,
+            f1_se: se,
+            mean_iou_se: 0.01,
+            precision: 0.9,
+            recall: 0.9,
+            latency,
+            latency_noise_ms: latency.noise_ms(),
+            confidence: BTreeMap::new(),
+            on_front: BTreeMap::new(),
+            on_plain_front: BTreeMap::new(),
+            dominated_by: BTreeMap::new(),
+            merged_into: BTreeMap::new(),
+        }
+    }
+
+    #[test]
+    fn report_marks_fronts_merges_and_what_covers_each_variant() {
+        let mut out = vec![
+            variant("mag30", 32.7, 0.979, 0.005),
+            variant("base", 32.6, 0.978, 0.005),
+            variant("ch50-p20-int8", 3.1, 0.925, 0.009),
+            variant("mag50", 32.8, 0.980, 0.006),
+            variant("mag70", 32.5, 0.975, 0.006),
+        ];
+        let metrics: [Metric; 3] = [
+            ("map", "mAP@0.5", |r| r.map, |r| r.map_se),
+            ("f1", "F1", |r| r.f1, |r| r.f1_se),
+            ("iou", "mean IoU", |r| r.mean_iou, |r| r.mean_iou_se),
+        ];
+        let (mut fronts, mut plain_fronts) = (BTreeMap::new(), BTreeMap::new());
+        for (key, _, get, get_se) in metrics {
+            let (f, plain) = mark_fronts(&mut out, key, get, get_se);
+            let names = |idx: &[usize]| -> Vec<String> {
+                idx.iter().map(|&i| out[i].name.clone()).collect()
+            };
+            fronts.insert(key.to_string(), names(&f));
+            plain_fronts.insert(key.to_string(), names(&plain));
+        }
+        let report = ParetoReport {
+            frames: 720,
+            videos: 12,
+            bootstrap_resamples: BOOTSTRAP_RESAMPLES,
+            latency_noise_floor: crate::stats::LATENCY_NOISE_FLOOR,
+            threads: 1,
+            variants: out,
+            fronts,
+            plain_fronts,
+        };
+        assert_eq!(report.fronts["map"], ["ch50-p20-int8", "mag70"]);
+        assert_eq!(
+            report.plain_fronts["map"],
+            ["ch50-p20-int8", "mag70", "base", "mag30", "mag50"]
+        );
+        // every mean IoU is 0.9: the fastest covers the rest
+        assert_eq!(report.fronts["iou"], ["ch50-p20-int8"]);
+        let v = |n: &str| report.variants.iter().find(|v| v.name == n).unwrap();
+        for n in ["base", "mag30", "mag50"] {
+            assert_eq!(v(n).merged_into["map"].as_deref(), Some("mag70"), "{n}");
+            assert_eq!(v(n).dominated_by["map"], ["mag70"], "{n}");
+            assert_eq!(v(n).dominated_by["iou"], ["ch50-p20-int8"], "{n}");
+            assert_eq!(v(n).merged_into["iou"], None, "{n}");
+        }
+        // the invariant the CLI test checks: on a front exactly when nothing covers it
+        for r in &report.variants {
+            for key in ["map", "f1", "iou"] {
+                assert_eq!(
+                    r.on_front[key],
+                    r.dominated_by[key].is_empty(),
+                    "{key} {}",
+                    r.name
+                );
+                assert_eq!(r.on_front[key], report.fronts[key].contains(&r.name));
+                assert_eq!(
+                    r.on_plain_front[key],
+                    report.plain_fronts[key].contains(&r.name)
+                );
+            }
+        }
+        let json = serde_json::to_value(&report).unwrap();
+        assert_eq!(json["variants"][1]["merged_into"]["map"], "mag70");
+        assert!(json["variants"][4]["merged_into"]["map"].is_null());
+        assert_eq!(json["variants"][3]["map_se"], 0.006);
+        assert!(
+            (json["variants"][0]["latency"]["spread_ms"]
+                .as_f64()
+                .unwrap()
+                - 1.1445)
+                .abs()
+                < 1e-9
+        );
+        let table = csv(&report);
+        let rows: Vec<&str> = table.lines().collect();
+        assert_eq!(rows.len(), 6);
+        let columns = rows[0].split(',').count();
+        assert!(rows.iter().all(|r| r.split(',').count() == columns));
+        let col = |name: &str| rows[0].split(',').position(|c| c == name).unwrap();
+        let base: Vec<&str> = rows[2].split(',').collect();
+        assert_eq!(base[0], "base");
+        assert_eq!(base[col("map_se")], "0.0050");
+        assert_eq!(base[col("front_map")], "false");
+        assert_eq!(base[col("plain_front_map")], "true");
+        assert_eq!(base[col("merged_into_map")], "mag70");
+        assert!(super::table(&report).contains("= mag70"));
+    }
 
     #[test]
     fn confidence_histogram_counts_top_scores_and_misses() {
