@@ -438,6 +438,9 @@ fn content_after(
     (content, last.map(|(j, b)| (j - n, b)))
 }
 
+/// The last box shown before a segment: its frame offset (negative) and box.
+type LastBox = Option<(i64, BBox)>;
+
 /// A sample of the semi-MDP.
 #[derive(Clone, Copy, Debug)]
 struct Sample {
@@ -633,17 +636,17 @@ pub fn train_budget(
     for video in &segs {
         let n = video.len();
         for t in 0..n {
-            for v in 0..v_n {
-                variant_f1[v].0 += video[t][v].frames[0].0;
-                variant_f1[v].1 += 1;
+            for (acc, seg) in variant_f1.iter_mut().zip(&video[t]) {
+                acc.0 += seg.frames[0].0;
+                acc.1 += 1;
             }
-            // states that segments ending at t leave (with their last box)
-            let mut entering: Vec<(usize, usize, Option<(i64, BBox)>)> = Vec::new();
-            for v0 in 0..v_n {
-                for p0 in 0..p_n {
-                    let start = t.checked_sub(cfg.periods[p0] as usize);
-                    let Some(start) = start else { continue };
-                    let seg = &video[start][v0];
+            // states that segments ending at t leave: (state, variant, its last box)
+            let mut entering: Vec<(usize, usize, LastBox)> = Vec::new();
+            for (p0, &period) in cfg.periods.iter().enumerate() {
+                let Some(start) = t.checked_sub(period as usize) else {
+                    continue;
+                };
+                for (v0, seg) in video[start].iter().enumerate() {
                     if seg_len(seg, p0) != cfg.periods[p0] as usize {
                         continue; // that segment ended earlier (lost track) or is shorter
                     }
@@ -651,8 +654,7 @@ pub fn train_budget(
                     entering.push((s, v0, last));
                 }
             }
-            for v in 0..v_n {
-                let seg = &video[t][v];
+            for (v, seg) in video[t].iter().enumerate() {
                 for p in 0..p_n {
                     let len = seg_len(seg, p);
                     let a = cfg.action(v, p);

@@ -80,7 +80,7 @@ impl BudgetStrategy {
 /// Who decides, frame by frame.
 enum Brain<'a> {
     /// The runtime's scheduler over a bundle with the budget tables.
-    Scheduler(Scheduler<'a>),
+    Scheduler(Box<Scheduler<'a>>),
     /// A fixed, random or ApproxDet-style choice of (variant, period).
     Period {
         choose: Chooser,
@@ -96,7 +96,7 @@ enum Brain<'a> {
 
 enum Chooser {
     Fixed(usize),
-    Random(rand_chacha::ChaCha8Rng, Vec<usize>),
+    Random(Box<rand_chacha::ChaCha8Rng>, Vec<usize>),
     Approxdet,
 }
 
@@ -232,7 +232,7 @@ pub fn stream_strategy(
             let rng = rand_chacha::ChaCha8Rng::seed_from_u64(
                 cfg.seed ^ u64::from(video.id) ^ (k as u64) << 32,
             );
-            period(Chooser::Random(rng, fits))
+            period(Chooser::Random(Box::new(rng), fits))
         }
         BudgetStrategy::Approxdet => period(Chooser::Approxdet),
         BudgetStrategy::Budget => {
@@ -240,10 +240,12 @@ pub fn stream_strategy(
                 path: "<memory>".into(),
                 message: e.to_string(),
             })?;
-            Brain::Scheduler(Scheduler::new(b, k).map_err(|e| PolicyError::Bundle {
-                path: "<memory>".into(),
-                message: e.to_string(),
-            })?)
+            Brain::Scheduler(Box::new(Scheduler::new(b, k).map_err(|e| {
+                PolicyError::Bundle {
+                    path: "<memory>".into(),
+                    message: e.to_string(),
+                }
+            })?))
         }
         BudgetStrategy::Oracle => Brain::Oracle { fallback: st },
     };
@@ -446,7 +448,7 @@ pub fn frame_f1(shown: &[Detection], video: &VideoLog, f: usize, iou: f32) -> f6
 }
 
 /// Every strategy at every budget over `videos`: the runs, keyed by budget index.
-#[allow(clippy::type_complexity)]
+#[allow(clippy::type_complexity, clippy::too_many_arguments)]
 pub fn stream_all(
     log: &ReplayLog,
     videos: &[&VideoLog],

@@ -42,6 +42,14 @@ fn score_log(
             pol.variants.join(", ")
         );
     }
+    // the policy's (calibrated) buckets, so that a log recorded elsewhere reports and
+    // buckets scores exactly as the policy was trained to
+    let mut log = log.clone();
+    log.families = policy.families.clone();
+    for (v, p) in log.variants.iter_mut().zip(&policy.variants) {
+        v.family = p.family;
+    }
+    let log = &log;
     let ds = Dataset::load(data)?;
     let frames = DatasetFrames::new(&ds);
     let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
