@@ -83,8 +83,15 @@ pub struct BudgetConfig {
     pub size_px: [f32; 2],
     /// Motion edges (px per frame) of the content state.
     pub motion_px: [f32; 2],
-    /// Seed of the random strategy.
+    /// Seed of the random strategy and of the clock's jitter.
     pub seed: u64,
+    /// Each video is streamed this many times, each frame's compute time drawn anew
+    /// within ±`jitter` of its measured value, and the pairs of every run pooled: on a
+    /// 30 fps clock a change of a fraction of a millisecond can shift which frames are
+    /// skipped for the rest of a video, so one run is one sample of the figure.
+    pub clock_runs: u32,
+    /// Relative jitter of the compute times between clock runs (0 = none).
+    pub jitter: f64,
 }
 
 impl Default for BudgetConfig {
@@ -106,6 +113,8 @@ impl Default for BudgetConfig {
             size_px: e.size_px,
             motion_px: e.motion_px,
             seed: 7,
+            clock_runs: 8,
+            jitter: 0.05,
         }
     }
 }
@@ -149,6 +158,9 @@ impl BudgetConfig {
         }
         if !(self.approxdet_headroom.is_finite() && self.approxdet_headroom >= 1.0) {
             return bad("approxdet_headroom", "must be >= 1");
+        }
+        if self.clock_runs == 0 || !(0.0..1.0).contains(&self.jitter) {
+            return bad("clock_runs", "clock_runs must be >= 1 and jitter in [0, 1)");
         }
         if self.approxdet_every == 0 || self.max_tracks == 0 {
             return bad(

@@ -206,8 +206,20 @@ pub fn stream_strategy(
     bundle: &[u8],
     strategy: BudgetStrategy,
     iou: f32,
+    clock_run: u32,
 ) -> Result<BudgetRun> {
     let cfg = &pol.config;
+    // clock run 0 charges the measured times; the others jitter them
+    let mut jitter = rand_chacha::ChaCha8Rng::seed_from_u64(
+        cfg.seed ^ 0x5eed ^ u64::from(video.id) << 16 ^ u64::from(clock_run) << 40,
+    );
+    let mut jittered = move |ms: f64| {
+        if clock_run == 0 || cfg.jitter == 0.0 {
+            ms
+        } else {
+            ms * (1.0 + jitter.random_range(-cfg.jitter..=cfg.jitter))
+        }
+    };
     let budget_ms = cfg.budgets_ms[k];
     let edges = ContentEdges {
         size_px: cfg.size_px,
@@ -288,7 +300,7 @@ pub fn stream_strategy(
             }
         };
         brain.shown(f, &shown);
-        Ok((shown, ms))
+        Ok((shown, jittered(ms)))
     })?;
     Ok(BudgetRun {
         video: video.id,
@@ -322,20 +334,20 @@ pub struct BudgetScore {
     pub timing: StreamTiming,
 }
 
+/// Scores of runs, each with its video; every clock run's pairs are pooled.
 fn score_runs(
     log: &ReplayLog,
-    videos: &[&VideoLog],
-    runs: &[&BudgetRun],
+    runs: &[(&VideoLog, &BudgetRun)],
     fps: f64,
     iou: f32,
 ) -> (f64, f64, f64, usize, StreamTiming) {
     let mut images: Vec<ImageResult> = Vec::new();
     let mut offline: Vec<ImageResult> = Vec::new();
-    let arrs: Vec<Vec<f64>> = videos
+    let arrs: Vec<Vec<f64>> = runs
         .iter()
-        .map(|v| arrivals(v.frames.len(), fps))
+        .map(|(v, _)| arrivals(v.frames.len(), fps))
         .collect();
-    for ((video, r), arr) in videos.iter().zip(runs).zip(&arrs) {
+    for ((video, r), arr) in runs.iter().zip(&arrs) {
         let tr: Vec<_> = (0..video.frames.len()).map(|f| truth(video, f)).collect();
         images.extend(streaming_images(arr, &tr, &r.run));
         for o in &r.run.outputs {
@@ -357,13 +369,13 @@ fn score_runs(
     .f1;
     let detections = runs
         .iter()
-        .flat_map(|r| &r.detect)
+        .flat_map(|(_, r)| &r.detect)
         .filter(|d| d.is_some())
         .count();
     let pairs: Vec<(&[f64], &StreamRun)> = arrs
         .iter()
         .map(Vec::as_slice)
-        .zip(runs.iter().map(|r| &r.run))
+        .zip(runs.iter().map(|(_, r)| &r.run))
         .collect();
     (s50, s, f1, detections, timing(&pairs))
 }
@@ -403,17 +415,17 @@ pub fn budget_scores(
                 .iter()
                 .filter(|(kk, _, _)| *kk == k)
                 .map(|(_, s, rs)| {
-                    let sel: Vec<&BudgetRun> = sel_videos
+                    let sel: Vec<(&VideoLog, &BudgetRun)> = sel_videos
                         .iter()
-                        .filter_map(|v| rs.iter().find(|r| r.video == v.id))
+                        .flat_map(|v| rs.iter().filter(|r| r.video == v.id).map(move |r| (*v, r)))
                         .collect();
                     let (sap50, sap, f1, detections, timing) =
-                        score_runs(log, &sel_videos, &sel, pol.config.fps, iou);
+                        score_runs(log, &sel, pol.config.fps, iou);
                     BudgetScore {
                         budget_ms: budget,
                         scenario: name.clone(),
                         strategy: s.name().into(),
-                        videos: sel.len(),
+                        videos: sel_videos.len(),
                         sap50,
                         sap,
                         f1,
@@ -462,14 +474,15 @@ pub fn stream_all(
     let mut out = Vec::new();
     for k in 0..pol.config.budgets_ms.len() {
         for s in BudgetStrategy::ALL {
-            let runs = videos
-                .iter()
-                .map(|v| {
-                    let r = stream_strategy(log, v, frames, cost, pol, k, bundle, s, iou);
-                    progress();
-                    r
-                })
-                .collect::<Result<Vec<_>>>()?;
+            let mut runs = Vec::new();
+            for v in videos {
+                for c in 0..pol.config.clock_runs {
+                    runs.push(stream_strategy(
+                        log, v, frames, cost, pol, k, bundle, s, iou, c,
+                    )?);
+                }
+                progress();
+            }
             out.push((k, s, runs));
         }
     }

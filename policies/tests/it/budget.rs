@@ -28,6 +28,7 @@ fn config() -> BudgetConfig {
     BudgetConfig {
         budgets_ms: vec![33.0, 12.0, 5.0],
         slowdown: 3.0,
+        clock_runs: 2,
         ..BudgetConfig::default()
     }
 }
@@ -143,6 +144,7 @@ fn the_runtime_pilot_runs_the_budget_policy_as_the_evaluation() {
                 &bytes,
                 BudgetStrategy::Budget,
                 0.5,
+                0,
             )
             .unwrap();
             assert_eq!(run.run.outputs.len(), video.frames.len());
