@@ -22,7 +22,7 @@
 
 use crate::budget::{BudgetPolicies, Perceiver, TrackState, largest, shown_f1, truth};
 use crate::error::{PolicyError, Result};
-use crate::eval::{Scenario, TrackerCost, correct};
+use crate::eval::{TrackerCost, correct, scenario_groups};
 use crate::replay::{Frames, ReplayLog, VideoLog};
 use crate::stream::{StreamRun, StreamTiming, arrivals, sap, simulate, streaming_images, timing};
 use frugal_models::metrics::{ImageResult, Interpolation, evaluate};
@@ -388,21 +388,7 @@ pub fn budget_scores(
     runs: &[(usize, BudgetStrategy, Vec<BudgetRun>)],
     iou: f32,
 ) -> Vec<BudgetScore> {
-    let mut groups: Vec<(String, Vec<u32>)> = Scenario::ALL
-        .iter()
-        .map(|s| {
-            (
-                s.name().to_owned(),
-                videos
-                    .iter()
-                    .filter(|v| Scenario::of(v) == *s)
-                    .map(|v| v.id)
-                    .collect::<Vec<_>>(),
-            )
-        })
-        .filter(|(_, ids)| !ids.is_empty())
-        .collect();
-    groups.push(("all".into(), videos.iter().map(|v| v.id).collect()));
+    let groups = scenario_groups(videos);
     let mut out = Vec::new();
     for (k, &budget) in pol.config.budgets_ms.iter().enumerate() {
         for (name, ids) in &groups {

@@ -911,9 +911,8 @@ fn score(
     }
 }
 
-/// Scores per scenario (and `all`) and strategy, with speed-up and F1 loss against
-/// the static strategy of the same scenario.
-pub fn scores(log: &ReplayLog, videos: &[&VideoLog], runs: &Runs, cfg: &EvalConfig) -> Vec<Score> {
+/// The scenarios present among `videos` with their video ids, then `all`.
+pub(crate) fn scenario_groups(videos: &[&VideoLog]) -> Vec<(String, Vec<u32>)> {
     let mut groups: Vec<(String, Vec<u32>)> = Scenario::ALL
         .iter()
         .map(|s| {
@@ -929,6 +928,13 @@ pub fn scores(log: &ReplayLog, videos: &[&VideoLog], runs: &Runs, cfg: &EvalConf
         .filter(|(_, ids)| !ids.is_empty())
         .collect();
     groups.push(("all".into(), videos.iter().map(|v| v.id).collect()));
+    groups
+}
+
+/// Scores per scenario (and `all`) and strategy, with speed-up and F1 loss against
+/// the static strategy of the same scenario.
+pub fn scores(log: &ReplayLog, videos: &[&VideoLog], runs: &Runs, cfg: &EvalConfig) -> Vec<Score> {
+    let groups = scenario_groups(videos);
     let mut out = Vec::new();
     for (name, ids) in &groups {
         let mut group: Vec<Score> = runs

@@ -5,8 +5,6 @@ mod it;
 
 use frugal_policies::Mdp;
 use rand::{Rng, SeedableRng};
-use std::io::Write;
-use std::process::{Command, Stdio};
 
 /// A random MDP shaped like frugal's: states = 3 confidence buckets × `variants`,
 /// actions = variants, the next state's variant is the action taken.
@@ -47,31 +45,15 @@ fn value_iteration_agrees_with_policy_iteration_and_pymdptoolbox() {
         })
         .collect();
 
-    let Some(python) = std::env::var_os("FRUGAL_PYTHON") else {
-        panic!(
-            "FRUGAL_PYTHON is not set: run `cargo xtask setup` (it sets it through .cargo/config.toml)"
-        );
-    };
     let input: Vec<serde_json::Value> = cases
         .iter()
         .map(|(m, g)| serde_json::json!({"states": m.states, "actions": m.actions, "p": m.p, "r": m.r, "gamma": g}))
         .collect();
-    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tools/mdptoolbox_check.py");
-    let mut child = Command::new(python)
-        .arg(script)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("start the Python peer");
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(serde_json::to_string(&input).unwrap().as_bytes())
-        .unwrap();
-    let output = child.wait_with_output().unwrap();
-    assert!(output.status.success(), "pymdptoolbox script failed");
-    let theirs: Vec<serde_json::Value> = serde_json::from_slice(&output.stdout).unwrap();
+    let theirs: Vec<serde_json::Value> = serde_json::from_value(it::fixture::python_peer(
+        "mdptoolbox_check.py",
+        &serde_json::json!(input),
+    ))
+    .unwrap();
     assert_eq!(theirs.len(), ours.len());
     for (mine, t) in ours.iter().zip(&theirs) {
         let pi_policy: Vec<usize> = serde_json::from_value(t["pi_policy"].clone()).unwrap();

@@ -11,17 +11,7 @@ use frugal_policies::budget_eval::{
 use frugal_policies::eval::{EvalConfig, Strategy, run_all};
 use frugal_policies::replay::{DatasetFrames, VideoLog};
 use frugal_policies::{ReplayLog, TrainedPolicy};
-use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
-
-fn bar(len: usize, msg: &str) -> ProgressBar {
-    let pb = ProgressBar::new(len as u64);
-    if let Ok(style) = ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len}, eta {eta}") {
-        pb.set_style(style);
-    }
-    pb.set_message(msg.to_string());
-    pb
-}
 
 /// Score `log`'s test videos and write `budget.json|csv|md` and the plots into `out`.
 fn score_log(
@@ -61,7 +51,7 @@ fn score_log(
     let n = videos.len()
         * pol.config.budgets_ms.len()
         * frugal_policies::budget_eval::BudgetStrategy::ALL.len();
-    let pb = bar(n, "streaming");
+    let pb = crate::features::bar(false, n, "streaming");
     let runs = stream_all(log, &videos, &frames, cost, pol, &bundle, 0.5, &|| {
         pb.inc(1)
     })?;

@@ -240,7 +240,7 @@ pub fn run(args: FeaturesArgs) -> anyhow::Result<()> {
     }
 }
 
-fn bar(quiet: bool, len: usize, msg: &'static str) -> ProgressBar {
+pub(crate) fn bar(quiet: bool, len: usize, msg: &'static str) -> ProgressBar {
     let bar = if quiet {
         ProgressBar::hidden()
     } else {

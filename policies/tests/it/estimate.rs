@@ -396,30 +396,10 @@ fn estimated_mdp_solves_the_same_in_pymdptoolbox() {
 }
 
 fn same_in_pymdptoolbox(p: &frugal_policies::TrainedPolicy, cfg: &PolicyConfig) {
-    use std::io::Write;
-    use std::process::{Command, Stdio};
-    let python =
-        std::env::var_os("FRUGAL_PYTHON").expect("FRUGAL_PYTHON (set by cargo xtask setup)");
     let m = &p.mdp;
     let input = serde_json::json!([{"states": m.states, "actions": m.actions, "p": m.p, "r": m.r, "gamma": cfg.gamma}]);
-    let mut child = Command::new(python)
-        .arg(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/tools/mdptoolbox_check.py"
-        ))
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(input.to_string().as_bytes())
-        .unwrap();
-    let out = child.wait_with_output().unwrap();
-    assert!(out.status.success());
-    let theirs: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
+    let theirs: Vec<serde_json::Value> =
+        serde_json::from_value(super::fixture::python_peer("mdptoolbox_check.py", &input)).unwrap();
     let pi_policy: Vec<u16> = serde_json::from_value(theirs[0]["pi_policy"].clone()).unwrap();
     let vi_policy: Vec<u16> = serde_json::from_value(theirs[0]["vi_policy"].clone()).unwrap();
     let values: Vec<f64> = serde_json::from_value(theirs[0]["pi_values"].clone()).unwrap();

@@ -169,3 +169,30 @@ pub fn log3() -> (ReplayLog, MemoryFrames) {
     let log = record(&mut s, &frames, videos, "".into(), 1, 8, false).unwrap();
     (log, frames)
 }
+
+/// Runs `tools/<script>` with the test venv's Python (`FRUGAL_PYTHON`, set by `cargo
+/// xtask setup`), `input` as JSON on its stdin, and parses its stdout as JSON.
+pub fn python_peer(script: &str, input: &serde_json::Value) -> serde_json::Value {
+    use std::io::Write;
+    use std::process::{Command, Stdio};
+    let python =
+        std::env::var_os("FRUGAL_PYTHON").expect("FRUGAL_PYTHON (set by cargo xtask setup)");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tools")
+        .join(script);
+    let mut child = Command::new(python)
+        .arg(&path)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| panic!("start the Python peer {}: {e}", path.display()));
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(input.to_string().as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "the Python peer {script} failed");
+    serde_json::from_slice(&out.stdout).unwrap()
+}

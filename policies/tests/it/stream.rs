@@ -1,12 +1,11 @@
 //! Streaming AP against an independent peer, on timestamped outputs of a simulated
 //! perception loop.
 
+use super::fixture::python_peer;
 use frugal_models::metrics::{ImageResult, Truth};
 use frugal_policies::stream::{FrameRule, arrivals, sap, simulate, streaming_images};
 use frugal_runtime::{BBox, Detection};
 use rand::{Rng, SeedableRng};
-use std::io::Write;
-use std::process::{Command, Stdio};
 
 fn xywh(b: &BBox) -> [f64; 4] {
     let (x1, y1, x2, y2) = (
@@ -134,26 +133,9 @@ fn stream_sap_matches_pycocotools() {
         "a case far from 0 and 1: {ours50}"
     );
 
-    let python =
-        std::env::var_os("FRUGAL_PYTHON").expect("FRUGAL_PYTHON (set by cargo xtask setup)");
-    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tools/sap_peer.py");
-    let mut child = Command::new(python)
-        .arg(script)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("start the Python peer");
     let case =
         serde_json::json!({"categories": (0..classes).collect::<Vec<_>>(), "videos": videos_json});
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(case.to_string().as_bytes())
-        .unwrap();
-    let out = child.wait_with_output().unwrap();
-    assert!(out.status.success(), "the pycocotools peer failed");
-    let theirs: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let theirs = python_peer("sap_peer.py", &case);
     let (t50, t) = (
         theirs["sap50"].as_f64().unwrap(),
         theirs["sap"].as_f64().unwrap(),
