@@ -241,11 +241,7 @@ fn a_fifteen_percent_change_of_every_latency_moves_the_budget_policy_little() {
         (scores, fits)
     };
     let (base, _) = figures(&log, &mut policy);
-    for factors in [
-        [0.85, 1.0, 1.15],
-        [1.15, 1.0, 0.85],
-        [1.15, 0.85, 1.15],
-    ] {
+    for factors in [[0.85, 1.0, 1.15], [1.15, 1.0, 0.85], [1.15, 0.85, 1.15]] {
         let mut moved = log.clone();
         for (v, f) in moved.variants.iter_mut().zip(factors) {
             v.latency_ms *= f;
