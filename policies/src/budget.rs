@@ -40,8 +40,8 @@ pub(crate) use crate::eval::{reported, truth};
 use crate::replay::{Frames, ReplayLog, VideoLog};
 use frugal_data::Split;
 use frugal_models::metrics::{ImageResult, Truth, image_counts};
+use frugal_runtime::bundle::BUCKET_COUNT;
 use frugal_runtime::bundle::write::{BudgetSpec, ScheduleSpec};
-use frugal_runtime::bundle::{BUCKET_COUNT, Bucket};
 use frugal_runtime::schedule::{
     BudgetInfo, CONTENT_STATES, Content, ContentEdges, ScheduleAction, largest_box, state_index,
 };
@@ -943,9 +943,4 @@ impl Model {
             })
             .collect()
     }
-}
-
-/// The bucket helper the runtime's scheduler uses, for callers that index states.
-pub fn bucket_of(log: &ReplayLog, v: usize, score: Option<f32>) -> Bucket {
-    log.buckets(v).to_runtime().bucket(score)
 }

@@ -20,7 +20,7 @@
 //! The paper's MDP (confidence bucket × variant, no budget) keeps its offline
 //! evaluation in [`crate::eval`].
 
-use crate::budget::{BudgetPolicies, Perceiver, TrackState, largest, shown_f1, truth};
+use crate::budget::{BudgetPolicies, Perceiver, TrackState, largest, truth};
 use crate::error::{PolicyError, Result};
 use crate::eval::{TrackerCost, correct, scenario_groups};
 use crate::replay::{Frames, ReplayLog, VideoLog};
@@ -438,11 +438,6 @@ pub fn budget_scores(
         }
     }
     out
-}
-
-/// Per-frame F1 helper re-exported for reports.
-pub fn frame_f1(shown: &[Detection], video: &VideoLog, f: usize, iou: f32) -> f64 {
-    shown_f1(shown, &truth(video, f), iou)
 }
 
 /// Every strategy at every budget over `videos`: the runs, keyed by budget index.
