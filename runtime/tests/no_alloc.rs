@@ -184,9 +184,9 @@ fn ten_thousand_frames_allocate_nothing() {
     );
 }
 
-#[test]
-fn the_pilot_loop_allocates_nothing_and_follows_two_signs() {
-    let bytes = two_variant_bundle();
+/// The pilot tests' clip (two signs drifting across 96×72 frames), the pyramid length
+/// it needs and the tracker settings for it; made before counting starts.
+fn two_sign_clip() -> (frugal_runtime::synth::Clip, usize, TrackerParams) {
     let spec = ClipSpec {
         width: 96,
         height: 72,
@@ -196,11 +196,18 @@ fn the_pilot_loop_allocates_nothing_and_follows_two_signs() {
         ..ClipSpec::standard(5, 24)
     };
     let clip = make_clip(&spec);
-    let (w, h) = (clip.width, clip.height);
-    let need = Pyramid::required_len(w, h, 3).unwrap();
-    let (mut wa, mut wb) = (vec![0u8; need], vec![0u8; need]);
+    let need = Pyramid::required_len(clip.width, clip.height, 3).unwrap();
     let mut params = TrackerParams::DEFAULT;
     params.lk.win_radius = 4;
+    (clip, need, params)
+}
+
+#[test]
+fn the_pilot_loop_allocates_nothing_and_follows_two_signs() {
+    let bytes = two_variant_bundle();
+    let (clip, need, params) = two_sign_clip();
+    let (w, h) = (clip.width, clip.height);
+    let (mut wa, mut wb) = (vec![0u8; need], vec![0u8; need]);
 
     COUNTING.with(|c| c.set(true));
     let bundle = Bundle::parse(&bytes).unwrap();
@@ -331,20 +338,9 @@ fn ten_thousand_scheduler_decisions_allocate_nothing() {
 #[test]
 fn ten_thousand_scheduled_pilot_frames_allocate_nothing() {
     let bytes = scheduled_bundle();
-    let spec = ClipSpec {
-        width: 96,
-        height: 72,
-        sign_size: 24.0,
-        growth: 1.0,
-        velocity: (1.0, 0.5),
-        ..ClipSpec::standard(5, 24)
-    };
-    let clip = make_clip(&spec);
+    let (clip, need, params) = two_sign_clip();
     let (w, h) = (clip.width, clip.height);
-    let need = Pyramid::required_len(w, h, 3).unwrap();
     let (mut wa, mut wb) = (vec![0u8; need], vec![0u8; need]);
-    let mut params = TrackerParams::DEFAULT;
-    params.lk.win_radius = 4;
 
     COUNTING.with(|c| c.set(true));
     let bundle = Bundle::parse(&bytes).unwrap();
