@@ -46,7 +46,7 @@ use frugal_runtime::schedule::{
     BudgetInfo, CONTENT_STATES, Content, ContentEdges, ScheduleAction, largest_box, state_index,
 };
 use frugal_runtime::track::{Pyramid, Tracker, TrackerParams, rgb_to_gray};
-use frugal_runtime::{BBox, Detection};
+use frugal_runtime::{BBox, Detection, TrackStatus};
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 
@@ -239,6 +239,7 @@ pub struct Perceiver<'a> {
     have_prev: bool,
     loaded: Option<usize>,
     held: Vec<Held>,
+    status: Option<TrackStatus>,
 }
 
 impl<'a> Perceiver<'a> {
@@ -266,6 +267,7 @@ impl<'a> Perceiver<'a> {
             have_prev: false,
             loaded: None,
             held: Vec::new(),
+            status: None,
         }
     }
 
@@ -296,6 +298,7 @@ impl<'a> Perceiver<'a> {
     /// trackers fared and the compute charged (ms, measuring machine).
     pub fn track(&mut self, f: usize) -> Result<(TrackState, f64)> {
         self.load(f)?;
+        self.status = None;
         if self.held.is_empty() {
             return Ok((TrackState::Idle, 0.0));
         }
@@ -308,10 +311,24 @@ impl<'a> Perceiver<'a> {
         if self.have_prev {
             let prev = Pyramid::new(&mut self.prev, w, h, levels).map_err(at(self.video, f))?;
             let cur = Pyramid::new(&mut self.cur, w, h, levels).map_err(at(self.video, f))?;
+            // as the runtime's `Pilot` reports it: the box that drifted most from its
+            // detection, the worst tracking quality (0 for a track lost on this frame)
+            let (mut iou, mut quality, mut bbox) = (f32::INFINITY, f32::INFINITY, None);
             for t in &mut self.held {
                 ms += self.cost.track_ms;
-                let _ = t.tracker.track(&prev, &cur);
+                match t.tracker.track(&prev, &cur) {
+                    Ok(o) => {
+                        let i = o.bbox.iou(&t.det.bbox);
+                        if i < iou {
+                            iou = i;
+                            bbox = Some(o.bbox);
+                        }
+                        quality = quality.min(o.quality);
+                    }
+                    Err(_) => quality = 0.0,
+                }
             }
+            self.status = bbox.map(|bbox| TrackStatus { bbox, iou, quality });
         }
         self.held.retain(|t| t.tracker.is_active());
         Ok((
@@ -322,6 +339,12 @@ impl<'a> Perceiver<'a> {
             },
             ms,
         ))
+    }
+
+    /// How the held boxes fared on the last [`Perceiver::track`], as the runtime's
+    /// controller is told (`None`: nothing tracked into that frame).
+    pub fn status(&self) -> Option<TrackStatus> {
+        self.status
     }
 
     /// Frame `f`, step 2 on a detection: variant `v`'s reported detections, every one
@@ -625,10 +648,18 @@ pub fn train_budget(
     let a_n = v_n * p_n;
     let s_n = BUCKET_COUNT * v_n * CONTENT_STATES;
     let edges = cfg.edges();
-    let segs: Vec<Vec<Vec<Segment>>> = train
-        .iter()
-        .map(|v| video_segments(log, v, frames, cost, cfg, iou))
-        .collect::<Result<_>>()?;
+    // every frame is read by up to `periods.last()` segments of every variant: decode
+    // each video once; videos in parallel
+    let segs: Vec<Vec<Vec<Segment>>> = {
+        use rayon::prelude::*;
+        train
+            .par_iter()
+            .map(|v| {
+                let cached = crate::replay::MemoryFrames::of_video(frames, v)?;
+                video_segments(log, v, &cached, cost, cfg, iou)
+            })
+            .collect::<Result<_>>()?
+    };
     let seg_len = |seg: &Segment, period: usize| seg.frames.len().min(cfg.periods[period] as usize);
     let seg_cost = |seg: &Segment, len: usize| -> f64 {
         seg.frames[..len].iter().map(|f| f.3).sum::<f64>() * cfg.slowdown

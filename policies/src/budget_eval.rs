@@ -12,13 +12,16 @@
 //! 3. `approxdet`: an ApproxDet-style scheduler (Xu et al., SenSys 2020): every 8
 //!    frames, the action most accurate on the training videos in the current content
 //!    whose latency is at most `budget / 1.3`;
-//! 4. `budget`: the learnt budget + content policy ([`crate::budget`]), run by the
+//! 4. `mdp+tracker`: the paper's MDP (confidence bucket × variant, no budget, its
+//!    accesses per image), run by the runtime's own [`Controller`] over the same
+//!    bundle, every reported box carried by the tracker (the paper's rule); the seed's
+//!    reference, the same at every budget but for the clock's jitter;
+//! 5. `budget`: the learnt budget + content policy ([`crate::budget`]), run by the
 //!    runtime's own [`Scheduler`] over a bundle holding its tables;
-//! 5. `oracle`: per frame, the cheapest variant that gets the frame right (the replay's
+//! 6. `oracle`: per frame, the cheapest variant that gets the frame right (the replay's
 //!    truth), detecting every frame.
 //!
-//! The paper's MDP (confidence bucket × variant, no budget) keeps its offline
-//! evaluation in [`crate::eval`].
+//! The paper's MDP also keeps its offline (clock-free) evaluation in [`crate::eval`].
 
 use crate::budget::{BudgetPolicies, Perceiver, TrackState, largest, truth};
 use crate::error::{PolicyError, Result};
@@ -27,7 +30,7 @@ use crate::replay::{Frames, ReplayLog, VideoLog};
 use crate::stream::{StreamRun, StreamTiming, arrivals, sap, simulate, streaming_images, timing};
 use frugal_models::metrics::{ImageResult, Interpolation, evaluate};
 use frugal_runtime::schedule::{ContentEdges, ContentTracker, Scheduler};
-use frugal_runtime::{Bundle, Decision, Detection};
+use frugal_runtime::{Access, Bundle, Controller, Decision, Detection, Observation};
 use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
@@ -43,6 +46,8 @@ pub enum BudgetStrategy {
     RandomTracker,
     /// The ApproxDet-style scheduler.
     Approxdet,
+    /// The paper's MDP with the tracker.
+    MdpTracker,
     /// The learnt budget + content policy.
     Budget,
     /// The per-frame oracle.
@@ -51,11 +56,12 @@ pub enum BudgetStrategy {
 
 impl BudgetStrategy {
     /// Every strategy, baselines first.
-    pub const ALL: [BudgetStrategy; 6] = [
+    pub const ALL: [BudgetStrategy; 7] = [
         BudgetStrategy::Static,
         BudgetStrategy::StaticTracker,
         BudgetStrategy::RandomTracker,
         BudgetStrategy::Approxdet,
+        BudgetStrategy::MdpTracker,
         BudgetStrategy::Budget,
         BudgetStrategy::Oracle,
     ];
@@ -67,6 +73,7 @@ impl BudgetStrategy {
             BudgetStrategy::StaticTracker => "static+tracker",
             BudgetStrategy::RandomTracker => "random+tracker",
             BudgetStrategy::Approxdet => "approxdet",
+            BudgetStrategy::MdpTracker => "mdp+tracker",
             BudgetStrategy::Budget => "budget",
             BudgetStrategy::Oracle => "oracle",
         }
@@ -81,6 +88,8 @@ impl BudgetStrategy {
 enum Brain<'a> {
     /// The runtime's scheduler over a bundle with the budget tables.
     Scheduler(Box<Scheduler<'a>>),
+    /// The runtime's controller over the bundle's MDP table.
+    Controller(Box<Controller<'a>>),
     /// A fixed, random or ApproxDet-style choice of (variant, period).
     Period {
         choose: Chooser,
@@ -109,11 +118,27 @@ struct Ctx<'a> {
 }
 
 impl Brain<'_> {
-    /// `Some(variant)` to detect, `None` to track.
-    fn decide(&mut self, f: usize, state: TrackState, ctx: &Ctx<'_>) -> Option<usize> {
+    /// `Some(variant)` to detect, `None` to track. `track` is what the controller is
+    /// told of the held boxes.
+    fn decide(
+        &mut self,
+        f: usize,
+        state: TrackState,
+        track: Option<frugal_runtime::TrackStatus>,
+        ctx: &Ctx<'_>,
+    ) -> Option<usize> {
         let frame = f as u32;
         match self {
             Brain::Scheduler(s) => match s.step(frame, state) {
+                Decision::Detect { variant, .. } => Some(usize::from(variant)),
+                Decision::Track => None,
+            },
+            // the score went to the controller in `detected`, as the runtime's `Pilot`
+            Brain::Controller(c) => match c.step(&Observation {
+                frame,
+                score: None,
+                track,
+            }) {
                 Decision::Detect { variant, .. } => Some(usize::from(variant)),
                 Decision::Track => None,
             },
@@ -167,9 +192,19 @@ impl Brain<'_> {
         }
     }
 
-    fn detected(&mut self, score: Option<f32>) {
-        if let Brain::Scheduler(s) = self {
-            s.detected(score);
+    /// The best score of the detection just run; `Some(variant)` when the paper's MDP
+    /// asks for another access on the same frame.
+    fn detected(&mut self, score: Option<f32>) -> Option<usize> {
+        match self {
+            Brain::Scheduler(s) => {
+                s.detected(score);
+                None
+            }
+            Brain::Controller(c) => match c.detected(score) {
+                Access::Again(next) => Some(usize::from(next)),
+                Access::Done => None,
+            },
+            _ => None,
         }
     }
 
@@ -177,7 +212,7 @@ impl Brain<'_> {
         match self {
             Brain::Scheduler(s) => s.shown(f as u32, shown.len(), largest(shown)),
             Brain::Period { content, .. } => content.shown(f as u32, shown.len(), largest(shown)),
-            Brain::Oracle { .. } => {}
+            Brain::Controller(_) | Brain::Oracle { .. } => {}
         }
     }
 }
@@ -247,6 +282,12 @@ pub fn stream_strategy(
             period(Chooser::Random(Box::new(rng), fits))
         }
         BudgetStrategy::Approxdet => period(Chooser::Approxdet),
+        BudgetStrategy::MdpTracker => Brain::Controller(Box::new(Controller::new(
+            Bundle::parse(bundle).map_err(|e| PolicyError::Bundle {
+                path: "<memory>".into(),
+                message: e.to_string(),
+            })?,
+        ))),
         BudgetStrategy::Budget => {
             let b = Bundle::parse(bundle).map_err(|e| PolicyError::Bundle {
                 path: "<memory>".into(),
@@ -278,8 +319,9 @@ pub fn stream_strategy(
         } else {
             (TrackState::Idle, 0.0)
         };
-        let shown = match brain.decide(f, state, &ctx) {
-            Some(v) => {
+        let status = if tracker { p.status() } else { None };
+        let shown = match brain.decide(f, state, status, &ctx) {
+            Some(mut v) => loop {
                 let (dets, score, dms) = if tracker {
                     p.detect(f, v)?
                 } else {
@@ -290,10 +332,15 @@ pub fn stream_strategy(
                     )
                 };
                 ms += dms;
-                brain.detected(score);
-                detect.push(Some(v as u16));
-                dets
-            }
+                // every access on the frame is charged; the last one's boxes are shown
+                match brain.detected(score) {
+                    Some(next) => v = next,
+                    None => {
+                        detect.push(Some(v as u16));
+                        break dets;
+                    }
+                }
+            },
             None => {
                 detect.push(None);
                 p.tracked()
@@ -441,6 +488,8 @@ pub fn budget_scores(
 }
 
 /// Every strategy at every budget over `videos`: the runs, keyed by budget index.
+/// Each video's frames are decoded once for all its streams, and videos run in
+/// parallel (rayon); the result does not depend on the thread count.
 #[allow(clippy::type_complexity, clippy::too_many_arguments)]
 pub fn stream_all(
     log: &ReplayLog,
@@ -450,24 +499,37 @@ pub fn stream_all(
     pol: &BudgetPolicies,
     bundle: &[u8],
     iou: f32,
-    progress: &dyn Fn(),
+    progress: &(dyn Fn() + Sync),
 ) -> Result<Vec<(usize, BudgetStrategy, Vec<BudgetRun>)>> {
-    let mut out = Vec::new();
-    for k in 0..pol.config.budgets_ms.len() {
-        for s in BudgetStrategy::ALL {
-            let mut runs = Vec::new();
-            for v in videos {
-                for c in 0..pol.config.clock_runs {
-                    runs.push(stream_strategy(
-                        log, v, frames, cost, pol, k, bundle, s, iou, c,
-                    )?);
-                }
-                progress();
-            }
-            out.push((k, s, runs));
-        }
-    }
-    Ok(out)
+    use rayon::prelude::*;
+    let combos: Vec<(usize, BudgetStrategy)> = (0..pol.config.budgets_ms.len())
+        .flat_map(|k| BudgetStrategy::ALL.map(|s| (k, s)))
+        .collect();
+    // per video, per (budget, strategy), its clock runs
+    let per_video: Vec<Vec<Vec<BudgetRun>>> = videos
+        .par_iter()
+        .map(|v| {
+            let cached = crate::replay::MemoryFrames::of_video(frames, v)?;
+            combos
+                .iter()
+                .map(|&(k, s)| {
+                    let runs = (0..pol.config.clock_runs)
+                        .map(|c| stream_strategy(log, v, &cached, cost, pol, k, bundle, s, iou, c))
+                        .collect::<Result<Vec<_>>>();
+                    progress();
+                    runs
+                })
+                .collect()
+        })
+        .collect::<Result<_>>()?;
+    Ok(combos
+        .iter()
+        .enumerate()
+        .map(|(i, &(k, s))| {
+            let runs = per_video.iter().flat_map(|v| v[i].iter().cloned()).collect();
+            (k, s, runs)
+        })
+        .collect())
 }
 
 /// The scores as CSV.
@@ -503,7 +565,65 @@ pub fn budget_csv(scores: &[BudgetScore]) -> String {
     s
 }
 
-/// The overall rows as a Markdown table, one block per budget.
+/// The budget policy against the others at one budget, over every video.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Margin {
+    /// Budget, device ms per frame.
+    pub budget_ms: f64,
+    /// The budget policy's sAP@0.5.
+    pub budget_sap50: f64,
+    /// The strongest simple baseline (static + tracker, random + tracker, ApproxDet-style)
+    /// at this budget.
+    pub best_baseline: String,
+    /// Its sAP@0.5.
+    pub best_baseline_sap50: f64,
+    /// Budget policy minus each other strategy, sAP@0.5 (0–1), in [`BudgetStrategy::ALL`]
+    /// order.
+    pub versus: Vec<(String, f64)>,
+}
+
+/// The simple baselines the headline compares against.
+const SIMPLE: [BudgetStrategy; 3] = [
+    BudgetStrategy::StaticTracker,
+    BudgetStrategy::RandomTracker,
+    BudgetStrategy::Approxdet,
+];
+
+/// The budget policy's margins at every budget (overall rows).
+pub fn budget_margins(scores: &[BudgetScore]) -> Vec<Margin> {
+    let mut budgets: Vec<f64> = scores.iter().map(|r| r.budget_ms).collect();
+    budgets.sort_by(|a, b| b.total_cmp(a));
+    budgets.dedup();
+    budgets
+        .into_iter()
+        .filter_map(|b| {
+            let row = |s: BudgetStrategy| {
+                scores
+                    .iter()
+                    .find(|r| r.budget_ms == b && r.scenario == "all" && r.strategy == s.name())
+            };
+            let ours = row(BudgetStrategy::Budget)?.sap50;
+            let best = SIMPLE
+                .iter()
+                .filter_map(|&s| row(s))
+                .max_by(|x, y| x.sap50.total_cmp(&y.sap50))?;
+            Some(Margin {
+                budget_ms: b,
+                budget_sap50: ours,
+                best_baseline: best.strategy.clone(),
+                best_baseline_sap50: best.sap50,
+                versus: BudgetStrategy::ALL
+                    .iter()
+                    .filter(|&&s| s != BudgetStrategy::Budget)
+                    .filter_map(|&s| row(s).map(|r| (s.name().to_string(), ours - r.sap50)))
+                    .collect(),
+            })
+        })
+        .collect()
+}
+
+/// The overall rows as a Markdown table, one block per budget, then the budget
+/// policy's margins.
 pub fn budget_table(scores: &[BudgetScore]) -> String {
     use std::fmt::Write as _;
     let mut s = String::from(
@@ -527,6 +647,29 @@ pub fn budget_table(scores: &[BudgetScore]) -> String {
             t.p50_latency_ms,
             t.p95_latency_ms
         );
+    }
+    let margins = budget_margins(scores);
+    if let Some(first) = margins.first() {
+        s.push_str("\nThe budget policy minus each strategy, sAP@0.5 points:\n\n| budget | best simple baseline |");
+        for (name, _) in &first.versus {
+            let _ = write!(s, " vs {name} |");
+        }
+        s.push_str("\n|---|---|");
+        s.push_str(&"---|".repeat(first.versus.len()));
+        s.push('\n');
+        for m in &margins {
+            let _ = write!(
+                s,
+                "| {} ms | {} ({:.1}) |",
+                m.budget_ms,
+                m.best_baseline,
+                100.0 * m.best_baseline_sap50
+            );
+            for (_, d) in &m.versus {
+                let _ = write!(s, " {:+.1} |", 100.0 * d);
+            }
+            s.push('\n');
+        }
     }
     s
 }

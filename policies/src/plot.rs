@@ -449,6 +449,7 @@ fn lines_draw<DB: DrawingBackend>(
     title: &str,
     axes: (&str, &str),
     series: &[(String, Vec<(f64, f64)>)],
+    join: bool,
 ) -> std::result::Result<(), String> {
     root.fill(&WHITE).map_err(s)?;
     let (x0, x1) = range(series.iter().flat_map(|(_, p)| p.iter().map(|q| q.0)), 0.08);
@@ -468,13 +469,14 @@ fn lines_draw<DB: DrawingBackend>(
         .map_err(s)?;
     for (i, (name, pts)) in series.iter().enumerate() {
         let color = Palette99::pick(i).to_rgba();
+        let line = if join { pts.clone() } else { Vec::new() };
         chart
-            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+            .draw_series(LineSeries::new(line, color.stroke_width(2)))
             .map_err(s)?
             .label(name.clone())
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color));
         chart
-            .draw_series(pts.iter().map(|&p| Circle::new(p, 4, color.filled())))
+            .draw_series(pts.iter().map(|&p| Circle::new(p, 5, color.filled())))
             .map_err(s)?;
     }
     chart
@@ -499,7 +501,23 @@ pub fn plot_lines(
     both(
         stem,
         (900, 600),
-        &|r| lines_draw(r, title, axes, series),
-        &|r| lines_draw(r, title, axes, series),
+        &|r| lines_draw(r, title, axes, series, true),
+        &|r| lines_draw(r, title, axes, series, true),
+    )
+}
+
+/// Points, one colour per named series, not joined (e.g. one strategy's figure per
+/// scenario), axes fitted to the points.
+pub fn plot_points(
+    stem: &Path,
+    title: &str,
+    axes: (&str, &str),
+    series: &[(String, Vec<(f64, f64)>)],
+) -> Result<()> {
+    both(
+        stem,
+        (900, 600),
+        &|r| lines_draw(r, title, axes, series, false),
+        &|r| lines_draw(r, title, axes, series, false),
     )
 }

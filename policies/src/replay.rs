@@ -363,6 +363,19 @@ pub struct MemoryFrames {
     pub frames: HashMap<(u32, u32), RgbFrame>,
 }
 
+impl MemoryFrames {
+    /// Every frame of `video`, decoded once from `frames` (for work that reads each
+    /// frame many times).
+    pub fn of_video(frames: &dyn Frames, video: &VideoLog) -> Result<Self> {
+        let mut out = Self::default();
+        for f in &video.frames {
+            out.frames
+                .insert((video.id, f.index), frames.load(video.id, f.index)?);
+        }
+        Ok(out)
+    }
+}
+
 impl Frames for MemoryFrames {
     fn load(&self, video: u32, index: u32) -> Result<RgbFrame> {
         self.frames.get(&(video, index)).cloned().ok_or_else(|| {

@@ -233,6 +233,7 @@ pub fn evaluate_and_write(
     write_json(&out.join("eval.json"), &report)?;
     write_text(&out.join("eval.csv"), &csv(&sc))?;
     plot_bars(&out.join("bars"), &sc)?;
+    plot_speed_f1(&out.join("speed-f1"), &sc)?;
     let clip_video = match clip {
         Some(id) => *videos.iter().find(|v| v.id == id).ok_or_else(|| {
             PolicyError::invalid(
@@ -386,4 +387,32 @@ pub fn kul_tables(runs: &Runs, rows: &[ClassScore], static_name: &str) -> String
         }
     }
     s
+}
+
+/// Speed-up against F1, one point per strategy over every test video: the trade-off a
+/// few F1 points wide that grouped bars hide.
+pub fn plot_speed_f1(stem: &std::path::Path, scores: &[Score]) -> Result<()> {
+    let mut names: Vec<&str> = Vec::new();
+    for s in scores {
+        if !names.contains(&s.strategy.as_str()) {
+            names.push(&s.strategy);
+        }
+    }
+    let series: Vec<(String, Vec<(f64, f64)>)> = names
+        .iter()
+        .map(|n| {
+            let pts = scores
+                .iter()
+                .filter(|s| s.strategy == *n && s.scenario == "all")
+                .map(|s| (s.speedup_vs_static, s.f1))
+                .collect();
+            (n.to_string(), pts)
+        })
+        .collect();
+    crate::plot::plot_points(
+        stem,
+        "speed against F1, every test video (replay, no clock)",
+        ("speed-up vs static (time per frame)", "F1 @ IoU 0.5"),
+        &series,
+    )
 }

@@ -6,7 +6,8 @@ use anyhow::Context;
 use frugal_data::{Dataset, Split};
 use frugal_policies::budget::{BudgetConfig, train_budget};
 use frugal_policies::budget_eval::{
-    BudgetScore, budget_csv, budget_scores, budget_table, plot_budget, stream_all,
+    BudgetScore, budget_csv, budget_margins, budget_scores, budget_table, plot_budget,
+    stream_all,
 };
 use frugal_policies::eval::{EvalConfig, Strategy, run_all};
 use frugal_policies::replay::{DatasetFrames, VideoLog};
@@ -19,6 +20,7 @@ fn score_log(
     data: &Path,
     policy: &TrainedPolicy,
     cost: frugal_policies::eval::TrackerCost,
+    eval: &EvalConfig,
     out: &Path,
 ) -> anyhow::Result<Vec<BudgetScore>> {
     let pol = policy
@@ -46,8 +48,7 @@ fn score_log(
     if videos.is_empty() {
         anyhow::bail!("{}: the log has no test videos", data.display());
     }
-    let bundle =
-        frugal_policies::bundle::policy_bundle(policy, EvalConfig::default().thresholds())?;
+    let bundle = frugal_policies::bundle::policy_bundle(policy, eval.thresholds())?;
     let n = videos.len()
         * pol.config.budgets_ms.len()
         * frugal_policies::budget_eval::BudgetStrategy::ALL.len();
@@ -61,6 +62,7 @@ fn score_log(
     frugal_data::dataset::write_json_atomic(&out.join("budget.json"), &scores)?;
     frugal_data::dataset::write_atomic(&out.join("budget.csv"), budget_csv(&scores).as_bytes())?;
     frugal_data::dataset::write_atomic(&out.join("budget.md"), budget_table(&scores).as_bytes())?;
+    frugal_data::dataset::write_json_atomic(&out.join("margins.json"), &budget_margins(&scores))?;
     plot_budget(&out.join("budget"), &scores)?;
     Ok(scores)
 }
@@ -73,6 +75,7 @@ pub fn run(
     data: Option<&Path>,
     config: Option<&Path>,
     heldout: &[PathBuf],
+    eval: &EvalConfig,
 ) -> anyhow::Result<()> {
     let log = ReplayLog::load(log_path)?;
     let mut policy = TrainedPolicy::load(policy_path)?;
@@ -96,7 +99,7 @@ pub fn run(
         &policy,
         &train,
         Some(&frames),
-        &EvalConfig::default(),
+        eval,
         &[Strategy::StaticTracker],
     )?
     .cost;
@@ -114,12 +117,12 @@ pub fn run(
     policy.budget = Some(pol);
     std::fs::create_dir_all(out)?;
     policy.save(&out.join("policy.json"))?;
-    let scores = score_log(&log, &root, &policy, cost, out)?;
+    let scores = score_log(&log, &root, &policy, cost, eval, out)?;
     print!("{}", budget_table(&scores));
     for (i, h) in heldout.iter().enumerate() {
         let hl = ReplayLog::load(h)?;
         let dir = out.join(format!("heldout-{}", i + 1));
-        let scores = score_log(&hl, &hl.dataset.clone(), &policy, cost, &dir)?;
+        let scores = score_log(&hl, &hl.dataset.clone(), &policy, cost, eval, &dir)?;
         println!("\nheld out: {}", h.display());
         print!("{}", budget_table(&scores));
     }

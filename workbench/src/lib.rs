@@ -12,6 +12,7 @@ pub mod compress;
 pub mod data;
 pub mod eval;
 pub mod features;
+pub mod figures;
 pub mod fly;
 pub mod pareto;
 pub mod policy;
@@ -57,6 +58,9 @@ enum Command {
     /// Run the whole pipeline into one run folder, skipping stages whose inputs are
     /// unchanged, and write report.md / report.html.
     Run(run::RunArgs),
+    /// The run's figures in documents: check that every quoted figure matches the run,
+    /// or publish a run's figures and rewrite them.
+    Figures(figures::FiguresArgs),
 }
 
 /// Parse `args` (the first is the program name) and run the subcommand.
@@ -73,6 +77,7 @@ where
         Command::Fly(args) => fly::run(args),
         Command::Data(args) => data::run(args),
         Command::Run(args) => run::run(args),
+        Command::Figures(args) => figures::run(args),
         Command::Policy(args) => policy::run(args),
         Command::Bundle(args) => bundle::run(args),
         Command::Train(args) => train::run(args),

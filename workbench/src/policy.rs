@@ -78,6 +78,10 @@ struct BudgetArgs {
     /// videos of a seed the policy never saw; each gets `heldout-<i>/` in the output.
     #[arg(long = "heldout")]
     heldout: Vec<PathBuf>,
+    /// The paper MDP's evaluation settings (as `frugal policy eval --config`): its
+    /// thresholds and accesses per image in the streamed `mdp+tracker` strategy.
+    #[arg(long)]
+    eval_config: Option<PathBuf>,
 }
 
 /// Options of `frugal policy record`.
@@ -419,6 +423,7 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
             a.data.as_deref(),
             a.config.as_deref(),
             &a.heldout,
+            &read_eval_config(a.eval_config.as_deref())?,
         ),
         PolicyCommand::Eval(a) => {
             let log = ReplayLog::load(&a.log)?;

@@ -1,7 +1,8 @@
 //! `frugal run`: the whole pipeline in one run folder.
 //!
-//! data → detector → variants → pareto → replay → policy → evaluation → bundle →
-//! flights, then `report.md` and `report.html`. Each stage is the stage's own
+//! data → detector → variants → pareto → replay → policy → evaluation → budget →
+//! bundle → flights, then `report.md`, `report.html` and `figures.json` (every figure
+//! a document may quote, see [`crate::figures`]). Each stage is the stage's own
 //! subcommand, run in process with arguments the report quotes. A stage writes into
 //! `<run>/<stage>.partial/` and is renamed to `<run>/<stage>/` only when complete, with
 //! a stamp (`.stamp.json`) holding the hash of its inputs: its config section, the
@@ -24,7 +25,8 @@ use std::path::PathBuf;
 pub struct RunArgs {
     /// Run config (TOML or JSON): a `profile` and any values to override, section per
     /// stage (`data`, `detector`, `compress`, `pareto`, `replay`, `policy`,
-    /// `evaluation`, `flights`); the built-in default profile when omitted.
+    /// `evaluation`, `budget`, `heldout`, `flights`); the built-in default profile
+    /// when omitted.
     pub config: Option<PathBuf>,
     /// The run folder (every artifact, the stamps and the report go here).
     #[arg(long, default_value = "runs/default")]
@@ -47,6 +49,25 @@ pub struct RunArgs {
     /// Hide progress bars.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// The stages' folder names, in pipeline order.
+pub fn stage_names() -> impl Iterator<Item = &'static str> {
+    STAGES.iter().map(|s| s.name)
+}
+
+/// The run files `frugal figures publish` copies, and their published names.
+pub fn published_files() -> &'static [(&'static str, &'static str)] {
+    &[
+        ("report.md", "report.md"),
+        ("pareto/pareto_map.png", "pareto_map.png"),
+        ("budget/budget-sap.png", "budget_sap_test.png"),
+        ("budget/heldout-1/budget-sap.png", "budget_sap_heldout.png"),
+        ("budget/budget-speed-f1.png", "budget_speed_f1_test.png"),
+        ("evaluation/speed-f1.png", "replay_speed_f1.png"),
+        ("flights/medium_top_view.png", "flights_medium_top_view.png"),
+        ("data/contact_sheet.png", "contact_sheet.png"),
+    ]
 }
 
 /// Run `frugal run`.

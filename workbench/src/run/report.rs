@@ -333,6 +333,7 @@ pub(crate) fn write(ctx: &Ctx, outcomes: &[Outcome], seconds: f64) -> anyhow::Re
         code(&mut md, &frugal_policies::report::score_table(&r.scores));
     }
     for (f, alt) in [
+        ("evaluation/speed-f1.png", "speed against F1 per strategy"),
         ("evaluation/bars-f1.png", "F1 per scenario"),
         ("evaluation/bars-time.png", "time per frame per scenario"),
         ("evaluation/clip.png", "reward, IoU and time over one clip"),
@@ -341,13 +342,39 @@ pub(crate) fn write(ctx: &Ctx, outcomes: &[Outcome], seconds: f64) -> anyhow::Re
         figure(&mut md, run, f, alt);
     }
 
-    md.push_str("## 6. Bundle\n\n");
+    md.push_str("## 6. Budget policies, by streaming AP\n\n");
+    provenance(&mut md, of("budget"));
+    for (dir, what) in [
+        ("budget", "On the test videos"),
+        (
+            "budget/heldout-1",
+            "On the held-out videos (a seed and scenario mix no other stage saw)",
+        ),
+    ] {
+        if let Some(t) = read_text(&run.join(dir).join("budget.md")) {
+            let _ = writeln!(md, "{what}:\n\n{t}");
+            figure(
+                &mut md,
+                run,
+                &format!("{dir}/budget-sap.png"),
+                "streaming AP against the budget",
+            );
+            figure(
+                &mut md,
+                run,
+                &format!("{dir}/budget-speed-f1.png"),
+                "speed against F1 per strategy",
+            );
+        }
+    }
+
+    md.push_str("## 7. Bundle\n\n");
     provenance(&mut md, of("bundle"));
     if let Ok(t) = frugal_policies::bundle::inspect(&run.join("bundle")) {
         code(&mut md, &t);
     }
 
-    md.push_str("## 7. Maze flights\n\n");
+    md.push_str("## 8. Maze flights\n\n");
     provenance(&mut md, of("flights"));
     if !flights.is_empty() {
         md.push_str(&flights_table(&flights));
@@ -370,6 +397,7 @@ pub(crate) fn write(ctx: &Ctx, outcomes: &[Outcome], seconds: f64) -> anyhow::Re
 
     let md_path = run.join("report.md");
     write_atomic(&md_path, md.as_bytes())?;
+    frugal_data::dataset::write_json_atomic(&run.join("figures.json"), &crate::figures::collect(run))?;
     let mut body = String::new();
     let parser = pulldown_cmark::Parser::new_ext(&md, pulldown_cmark::Options::ENABLE_TABLES);
     pulldown_cmark::html::push_html(&mut body, parser);

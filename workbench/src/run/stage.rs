@@ -22,7 +22,7 @@ pub(crate) struct StageDef {
 }
 
 /// The pipeline, in order.
-pub(crate) const STAGES: [StageDef; 9] = [
+pub(crate) const STAGES: [StageDef; 10] = [
     StageDef {
         name: "data",
         deps: &[],
@@ -59,8 +59,13 @@ pub(crate) const STAGES: [StageDef; 9] = [
         what: "static, random, MDP, with and without tracker, and the oracle, on test videos",
     },
     StageDef {
+        name: "budget",
+        deps: &["replay", "policy", "pareto"],
+        what: "the budget + content policy, and every strategy streamed on a simulated clock (streaming AP) on the test videos and on held-out videos of a new seed",
+    },
+    StageDef {
         name: "bundle",
-        deps: &["policy"],
+        deps: &["budget"],
         what: "the policy bundle the drone loads, verified",
     },
     StageDef {
@@ -194,6 +199,11 @@ impl Ctx {
             "replay" => serde_json::to_value(&c.replay)?,
             "policy" => serde_json::to_value(&c.policy)?,
             "evaluation" => serde_json::to_value(&c.evaluation)?,
+            "budget" => json!({
+                "budget": c.budget,
+                "heldout": c.heldout,
+                "evaluation": c.evaluation,
+            }),
             "bundle" => json!({
                 "iou_threshold": c.evaluation.iou_threshold,
                 "mdp_period": c.evaluation.mdp_period,
@@ -212,6 +222,7 @@ impl Ctx {
         let value = match name {
             "detector" => serde_json::to_value(&self.config.detector)?,
             "data" | "variants" | "policy" | "evaluation" => self.section(name)?,
+            "budget" => serde_json::to_value(&self.config.budget)?,
             _ => return Ok(None),
         };
         let path = self.run.join("config").join(format!("{name}.json"));
@@ -493,6 +504,42 @@ impl Ctx {
                 s("--config"),
                 cfg(),
             ])?],
+            "budget" => {
+                let held = out.join("heldout");
+                let held_cfg = self.run.join("config/heldout.json");
+                write_json(&held_cfg, &c.heldout)?;
+                let held_log = arg(&held.join("replay.json"));
+                let record = self.record_args(&held.join("data"), &held_log, "test", "val");
+                let eval_cfg = self.run.join("config/evaluation.json");
+                write_json(&eval_cfg, &c.evaluation)?;
+                vec![
+                    self.frugal(&self.quiet(vec![
+                        s("data"),
+                        s("generate"),
+                        s("--config"),
+                        arg(&held_cfg),
+                        s("--out"),
+                        arg(&held.join("data")),
+                    ]))?,
+                    self.frugal(&self.quiet(record))?,
+                    self.frugal(&[
+                        s("policy"),
+                        s("budget"),
+                        s("--log"),
+                        arg(&self.dir("replay").join("replay.json")),
+                        s("--policy"),
+                        arg(&self.dir("policy").join("policy.json")),
+                        s("--out"),
+                        arg(out),
+                        s("--config"),
+                        cfg(),
+                        s("--eval-config"),
+                        arg(&eval_cfg),
+                        s("--heldout"),
+                        held_log,
+                    ])?,
+                ]
+            }
             "bundle" => {
                 let e = &c.evaluation;
                 vec![
@@ -500,7 +547,7 @@ impl Ctx {
                         s("bundle"),
                         s("write"),
                         s("--policy"),
-                        arg(&self.dir("policy").join("policy.json")),
+                        arg(&self.dir("budget").join("policy.json")),
                         s("--out"),
                         arg(out),
                         s("--iou-threshold"),
