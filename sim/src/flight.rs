@@ -52,8 +52,9 @@ struct Sighting {
     /// Re-readings by the most accurate detector that found no turn or STOP sign at its
     /// spot. A sign it once read can be missed on a frame, so one such reading abstains;
     /// but once they outnumber the votes of its action, the first reading was a false
-    /// alarm and the sighting is dropped (session 10: a confirmed false "turn left" on
-    /// a wall, never read again over 2.4 m, turned the drone into that wall).
+    /// alarm and the sighting is dropped (without this rule, a confirmed false "turn
+    /// left" on a wall, never read again over 2.4 m, turned the drone into that wall;
+    /// rule added in a931b6b).
     blanks: f64,
     /// Odometer at its last confirmation.
     confirmed_at: f64,
@@ -88,7 +89,7 @@ const RECONFIRM_EVERY: f64 = 1.0;
 /// covers the same box (IoU ≥ 0.5). The detectors suppress overlaps per class, so a
 /// WAIT pictogram can come back as WAIT at 0.9 and as a turn at 0.55; without this,
 /// a confirmation found the turn among the reference detector's boxes and the drone
-/// turned 21 m early into a wall (session 8, hard maze, tx2-like).
+/// turned 21 m early into a wall (hard maze, tx2-like device; fixed in a09cb98).
 fn outranked_dropped(detections: &[Detection]) -> impl Iterator<Item = &Detection> {
     detections.iter().filter(move |d| {
         !detections
