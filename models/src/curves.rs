@@ -1,10 +1,35 @@
 //! Training curves: `curves.csv` and a two-panel plot (losses, validation mAP per
 //! epoch) as `curves.png` and `curves.svg`.
 use crate::ModelError;
-use crate::train::EpochRecord;
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use serde::{Deserialize, Serialize};
 use std::path::Path;
+
+/// One line of the training curves.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EpochRecord {
+    /// Epoch number, from 1.
+    pub epoch: usize,
+    /// Optimizer steps done at its end.
+    pub step: u64,
+    /// Mean total loss over the epoch.
+    pub loss: f64,
+    /// Mean RPN objectness loss.
+    pub rpn_objectness: f64,
+    /// Mean RPN box loss.
+    pub rpn_box: f64,
+    /// Mean RoI classification loss.
+    pub roi_class: f64,
+    /// Mean RoI box loss.
+    pub roi_box: f64,
+    /// Validation mAP@0.5 (all-point) at its end.
+    pub val_map: f64,
+    /// Learning rate at its last step.
+    pub lr: f64,
+    /// Wall-clock seconds it took (training + validation).
+    pub seconds: f64,
+}
 
 fn plot_err(path: &Path, e: impl std::fmt::Display) -> ModelError {
     ModelError::Io {

@@ -4,8 +4,8 @@
 //! scenario (clutter × light), as `report.json` + `report.txt`, and the worst frames
 //! with their boxes drawn (`worst/*.png`: ground truth green, correct detections blue,
 //! wrong ones red).
+use crate::frames::{detect_frames, frame_truth, scenario, spread};
 use crate::metrics::{ImageResult, Interpolation, Summary, evaluate, image_counts};
-use crate::train::{detect_frames, frame_truth};
 use crate::{FasterRcnn, ModelError};
 use frugal_data::{Dataset, FrameRecord, Split};
 use frugal_runtime::BBox;
@@ -36,15 +36,6 @@ pub struct EvalReport {
     pub seconds_per_frame: f64,
 }
 
-/// The scenario of a frame, `"<clutter>-clutter/<light>-light"` (`"unknown"` when its
-/// video is not in the manifest).
-pub(crate) fn scenario(ds: &Dataset, f: &FrameRecord) -> String {
-    match ds.video(f.video) {
-        Some(v) => crate::config::scenario_name(v.clutter, v.light),
-        None => "unknown".into(),
-    }
-}
-
 /// Evaluate `model` on `split` of `ds` (all frames, or `limit` spread evenly).
 pub fn evaluate_split<'d>(
     model: &FasterRcnn,
@@ -54,7 +45,7 @@ pub fn evaluate_split<'d>(
     limit: usize,
     progress: bool,
 ) -> Result<(EvalReport, FrameResults<'d>), ModelError> {
-    let frames = crate::train::spread(ds.split(split).collect(), limit);
+    let frames = spread(ds.split(split).collect(), limit);
     if frames.is_empty() {
         return Err(ModelError::Data(format!(
             "{}: the {} split is empty",

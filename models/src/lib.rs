@@ -46,6 +46,7 @@ pub mod compress;
 pub mod config;
 pub mod curves;
 pub mod eval;
+mod frames;
 pub mod glue;
 pub mod loss;
 pub mod metrics;

@@ -16,13 +16,13 @@
 //! augmentation (ChaCha8 and `tch::manual_seed` seeded from `(seed, step)`), so a
 //! resumed run takes the same steps as an uninterrupted one.
 use crate::config::{Config, TrainConfig};
+use crate::frames::scenario;
 use crate::loss::image_losses;
-use crate::metrics::{ImageResult, Interpolation, Truth, evaluate};
+use crate::metrics::{Interpolation, Truth, evaluate};
 use crate::optim::{Optimizer, learning_rate};
 use crate::{FasterRcnn, ModelError, curves};
 use frugal_data::{Dataset, FrameRecord, Split};
 use frugal_runtime::BBox;
-use frugal_runtime::FrameRef;
 use indicatif::{ProgressBar, ProgressStyle};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
@@ -30,6 +30,9 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use tch::{Device, Kind, Tensor};
+
+pub use crate::curves::EpochRecord;
+pub use crate::frames::{detect_frames, frame_truth, spread};
 
 /// What one `frugal train` invocation is asked to do.
 #[derive(Clone, Debug)]
@@ -87,31 +90,6 @@ pub fn parse_device(name: &str) -> Result<Device, ModelError> {
     Ok(Device::Cuda(index))
 }
 
-/// One line of the training curves.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct EpochRecord {
-    /// Epoch number, from 1.
-    pub epoch: usize,
-    /// Optimizer steps done at its end.
-    pub step: u64,
-    /// Mean total loss over the epoch.
-    pub loss: f64,
-    /// Mean RPN objectness loss.
-    pub rpn_objectness: f64,
-    /// Mean RPN box loss.
-    pub rpn_box: f64,
-    /// Mean RoI classification loss.
-    pub roi_class: f64,
-    /// Mean RoI box loss.
-    pub roi_box: f64,
-    /// Validation mAP@0.5 (all-point) at its end.
-    pub val_map: f64,
-    /// Learning rate at its last step.
-    pub lr: f64,
-    /// Wall-clock seconds it took (training + validation).
-    pub seconds: f64,
-}
-
 /// The training state saved with every checkpoint.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -150,17 +128,6 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ModelError> {
     let tmp = path.with_extension("tmp");
     std::fs::write(&tmp, bytes).map_err(|e| ModelError::io(&tmp, e))?;
     std::fs::rename(&tmp, path).map_err(|e| ModelError::io(path, e))
-}
-
-/// Ground truth of a frame.
-pub fn frame_truth(f: &FrameRecord) -> Vec<Truth> {
-    f.objects
-        .iter()
-        .map(|o| Truth {
-            class: o.class,
-            bbox: o.bbox,
-        })
-        .collect()
 }
 
 /// An image as a `[1, 3, H, W]` float tensor in `[0, 1]`.
@@ -287,28 +254,6 @@ fn normalise(model: &FasterRcnn, x: &Tensor) -> Tensor {
     (x - mean) / std
 }
 
-/// Run `model` on frames and pair the detections with the ground truth.
-pub fn detect_frames(
-    model: &FasterRcnn,
-    ds: &Dataset,
-    frames: &[&FrameRecord],
-) -> Result<Vec<ImageResult>, ModelError> {
-    let mut out = Vec::with_capacity(frames.len());
-    for f in frames {
-        let rgb = ds
-            .load_rgb(f)
-            .map_err(|e| ModelError::Data(e.to_string()))?;
-        let frame = FrameRef::new(rgb.width(), rgb.height(), rgb.as_raw()).ok_or_else(|| {
-            ModelError::Data(format!("{}: pixel buffer size mismatch", f.file.display()))
-        })?;
-        out.push(ImageResult {
-            detections: model.detect(frame),
-            truth: frame_truth(f),
-        });
-    }
-    Ok(out)
-}
-
 /// One epoch's frame order: as many draws as there are frames, frame `i` about
 /// `weights[i]` times as often as a frame of weight 1 (each frame `⌊w⌋` times, plus once
 /// more with probability `w − ⌊w⌋`, shuffled, then cut to length). All weights 1 give a
@@ -328,14 +273,6 @@ pub fn epoch_order(weights: &[f64], rng: &mut ChaCha8Rng) -> Vec<usize> {
     pool.shuffle(rng);
     pool.truncate(weights.len());
     pool
-}
-
-/// Up to `n` frames spread evenly over `frames` (all when `n == 0`).
-pub fn spread(frames: Vec<&FrameRecord>, n: usize) -> Vec<&FrameRecord> {
-    if n == 0 || frames.len() <= n {
-        return frames;
-    }
-    (0..n).map(|i| frames[i * frames.len() / n]).collect()
 }
 
 struct Paths {
@@ -444,7 +381,7 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
     let weights: Vec<f64> = train_frames
         .iter()
         .map(|f| {
-            let name = crate::eval::scenario(&ds, f);
+            let name = scenario(&ds, f);
             tc.scenario_weights.get(&name).copied().unwrap_or(1.0)
         })
         .collect();

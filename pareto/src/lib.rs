@@ -36,6 +36,7 @@
 //! [`front()`] is still the plain non-dominated set (`plain_fronts` in the report).
 #![deny(missing_docs)]
 
+mod files;
 pub mod front;
 pub mod latency;
 pub mod measure;

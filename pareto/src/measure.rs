@@ -6,6 +6,7 @@
 //! latency noise is [`Latency::noise_ms`] of its timed runs, and each accuracy's
 //! standard error comes from a bootstrap over the validation videos
 //! ([`BOOTSTRAP_RESAMPLES`] resamples, seed [`BOOTSTRAP_SEED`]).
+use crate::files::{write_atomic, write_json};
 use crate::front::{NoisyPoint, Point, covered_by, front, front_within_noise, merged_into};
 use crate::plot::{FrontPlot, plot_front};
 use crate::stats::{Latency, cluster_resamples, std_dev};
@@ -17,7 +18,7 @@ use frugal_models::onnx::OrtDetector;
 use frugal_runtime::FrameRef;
 use serde::Serialize;
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// An accuracy metric: key, axis label, getter of the value and of its standard error.
 type Metric = (
@@ -165,17 +166,6 @@ fn bootstrap_se(
         }
     }
     values.map(|v| std_dev(&v))
-}
-
-pub(crate) fn write_json<T: Serialize>(path: &Path, v: &T) -> Result<(), ParetoError> {
-    let json = serde_json::to_vec_pretty(v).map_err(|e| ParetoError::Input(e.to_string()))?;
-    write_atomic(path, &json)
-}
-
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ParetoError> {
-    let tmp = path.with_extension("partial");
-    std::fs::write(&tmp, bytes).map_err(|e| ParetoError::io(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| ParetoError::io(path, e))
 }
 
 fn scenario(ds: &Dataset, f: &FrameRecord) -> String {

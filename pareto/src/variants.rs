@@ -1,6 +1,7 @@
 //! Reading the variant folders `frugal compress` wrote, and writing the variants file
 //! `frugal policy record --variants` reads.
 use crate::ParetoError;
+use crate::files::write_json;
 use frugal_models::compress::{VARIANT_FILE, VariantRecord, read_record};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -89,5 +90,5 @@ pub fn write_variants_file(
             })
             .collect(),
     };
-    crate::measure::write_json(path, &file)
+    write_json(path, &file)
 }

@@ -951,7 +951,7 @@ fn an_arrow_read_short_from_afar_gives_way_to_its_closer_readings() {
     // at 70 % of its distance there: a sighting placed 1.35-2.4 m short of the sign,
     // which stops being read once the readings come right (closer than 4.5 m) and
     // start a second sighting at the true spot; acting on the first turns the drone
-    // 1.35 m early (as a real flight did, hard maze, seed 3, session 6)
+    // 1.35 m early (as a real flight did, hard maze, seed 3, before 05a4907)
     let cfg = fast_config();
     let f_px = cfg.camera.focal_px();
     let (left, right) = (Sign::TurnLeft.id(), Sign::TurnRight.id());

@@ -3,10 +3,11 @@
 //! magnitude-pruning masks re-applied after every step.
 use super::prune::{Masks, apply_masks};
 use crate::config::TrainConfig;
+use crate::frames::{frame_truth, spread};
 use crate::loss::image_losses;
 use crate::metrics::Truth;
 use crate::optim::{Optimizer, learning_rate};
-use crate::train::{augment, frame_truth, spread};
+use crate::train::augment;
 use crate::{FasterRcnn, ModelError};
 use frugal_data::{Dataset, FrameRecord, Split};
 use frugal_runtime::BBox;

@@ -444,8 +444,8 @@ pub fn compress(opts: &CompressOptions) -> Result<Vec<VariantRecord>, ModelError
     })?;
     let full = (first.height as usize, first.width as usize);
     let calib_frames =
-        crate::train::spread(ds.split(Split::Train).collect(), grid.calibration_frames);
-    let drift_frames = crate::train::spread(ds.split(Split::Val).collect(), grid.drift_frames);
+        crate::frames::spread(ds.split(Split::Train).collect(), grid.calibration_frames);
+    let drift_frames = crate::frames::spread(ds.split(Split::Val).collect(), grid.drift_frames);
     std::fs::create_dir_all(&opts.out).map_err(|e| ModelError::io(&opts.out, e))?;
     // name → (fp32 model folder, input size)
     let mut made: HashMap<String, (PathBuf, (usize, usize))> = HashMap::new();

@@ -22,11 +22,13 @@
 
 use super::builder::{Dim, GraphBuilder, attr_float, attr_int, attr_ints, attr_string};
 use super::proto::{ModelProto, data_type};
+use super::qdq::quantize_weights_per_channel;
 use crate::{FasterRcnn, ModelError};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use tch::{Kind, Tensor};
 
+pub use super::qdq::{ActQuant, QuantSpec};
 pub use frugal_runtime::onnx::{BACKBONE_RPN_FILE, ROI_HEAD_FILE};
 
 /// The two graphs of an exported detector, in memory.
@@ -95,28 +97,6 @@ fn glue_metadata(model: &FasterRcnn, height: usize, width: usize) -> Vec<(&'stat
     ]
 }
 
-/// uint8 quantization parameters of one activation (`x ≈ (q - zero_point) · scale`).
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct ActQuant {
-    /// Step size.
-    pub scale: f32,
-    /// The uint8 value that stands for 0.
-    pub zero_point: u8,
-}
-
-/// What to quantize in a QDQ export: `activations` maps activation points (`image`,
-/// a layer's name for its ReLU output, `roi_head.pooled`) to uint8 parameters, each
-/// exported as a `QuantizeLinear` → `DequantizeLinear` pair; a layer in `layers` whose
-/// input is such a point gets int8 per-output-channel weights and int32 biases behind
-/// `DequantizeLinear` (axis 0), so ONNX Runtime fuses it into an integer kernel.
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct QuantSpec {
-    /// uint8 parameters per activation point.
-    pub activations: std::collections::BTreeMap<String, ActQuant>,
-    /// Layers whose weights are quantized.
-    pub layers: std::collections::BTreeSet<String>,
-}
-
 /// A value in the graph and, when it is the output of a `DequantizeLinear`, its
 /// quantization.
 #[derive(Clone)]
@@ -175,7 +155,7 @@ fn layer_params(
         return Ok((wn, bn, wshape));
     };
     let out = wshape.first().copied().unwrap_or(1) as usize;
-    let (qw, ws) = crate::compress::quant::quantize_weights_per_channel(&w, out);
+    let (qw, ws) = quantize_weights_per_channel(&w, out);
     let bs: Vec<f32> = ws.iter().map(|s| s * iq.scale).collect();
     let qb: Vec<i32> = b
         .iter()

@@ -9,14 +9,16 @@ pub mod executor;
 pub mod export;
 pub mod parity;
 pub mod proto;
+pub(crate) mod qdq;
 
 pub use builder::{Dim, GraphBuilder, OPSET, attr_float, attr_int, attr_ints, attr_string};
 pub use executor::{GlueSpec, OrtDetector, OrtError, StageTimes};
 pub use export::{
-    ActQuant, BACKBONE_RPN_FILE, DetectorGraphs, ExportedFiles, QuantSpec, ROI_HEAD_FILE,
-    detector_graphs, detector_graphs_quantized, export_detector, export_detector_quantized,
+    BACKBONE_RPN_FILE, DetectorGraphs, ExportedFiles, ROI_HEAD_FILE, detector_graphs,
+    detector_graphs_quantized, export_detector, export_detector_quantized,
 };
 pub use parity::{ParityReport, parity};
+pub use qdq::{ActQuant, QuantSpec};
 
 use prost::Message;
 use std::io::Write;

@@ -1,8 +1,8 @@
 //! Parity between the tch model and its ONNX Runtime export on real frames.
 
-use super::executor::{OrtDetector, OrtError};
 use crate::FasterRcnn;
 use frugal_runtime::FrameRef;
+use frugal_runtime::onnx::{OrtDetector, OrtError};
 use serde::Serialize;
 use tch::Kind;
 
