@@ -35,6 +35,8 @@ pub(crate) fn json(path: &Path) -> serde_json::Value {
 }
 #[path = "cli/data.rs"]
 mod data;
+#[path = "cli/docs.rs"]
+mod docs;
 #[path = "cli/features.rs"]
 mod features;
 #[path = "cli/fly.rs"]

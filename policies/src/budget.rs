@@ -35,9 +35,9 @@
 //! training videos seldom reach still gets a sensible action.
 
 use crate::error::{PolicyError, Result};
-use crate::eval::{TRACK_POINTS, TrackerCost};
-pub(crate) use crate::eval::{reported, truth};
 use crate::replay::{Frames, ReplayLog, VideoLog};
+use crate::scoring::{TRACK_POINTS, TrackerCost};
+pub(crate) use crate::scoring::{reported, truth};
 use frugal_data::Split;
 use frugal_models::metrics::{ImageResult, Truth, image_counts};
 use frugal_runtime::bundle::BUCKET_COUNT;

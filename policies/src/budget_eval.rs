@@ -25,8 +25,8 @@
 
 use crate::budget::{BudgetPolicies, Perceiver, TrackState, largest, truth};
 use crate::error::{PolicyError, Result};
-use crate::eval::{TrackerCost, correct, scenario_groups};
 use crate::replay::{Frames, ReplayLog, VideoLog};
+use crate::scoring::{TrackerCost, correct, scenario_groups};
 use crate::stream::{StreamRun, StreamTiming, arrivals, sap, simulate, streaming_images, timing};
 use frugal_models::metrics::{ImageResult, Interpolation, evaluate};
 use frugal_runtime::schedule::{ContentEdges, ContentTracker, Scheduler};
@@ -526,7 +526,10 @@ pub fn stream_all(
         .iter()
         .enumerate()
         .map(|(i, &(k, s))| {
-            let runs = per_video.iter().flat_map(|v| v[i].iter().cloned()).collect();
+            let runs = per_video
+                .iter()
+                .flat_map(|v| v[i].iter().cloned())
+                .collect();
             (k, s, runs)
         })
         .collect())

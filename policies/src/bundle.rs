@@ -381,6 +381,29 @@ pub fn inspect(path: &Path) -> Result<String> {
         }
         s.push('\n');
     }
+    if let Some(sch) = b.schedules() {
+        let periods: Vec<String> = (0..sch.period_count())
+            .filter_map(|i| sch.period(i))
+            .map(|p| p.to_string())
+            .collect();
+        let _ = writeln!(
+            s,
+            "schedules: {} budget tables, detect every {} frames",
+            sch.budget_count(),
+            periods.join(" / ")
+        );
+        for k in 0..sch.budget_count() {
+            if let Some(i) = sch.budget(k) {
+                let _ = writeln!(
+                    s,
+                    "  budget {k}: {} ms per frame (slowdown {}), expected {:.2} ms, P95 {:.2} ms",
+                    i.budget_ms, i.slowdown, i.expected_ms, i.p95_ms
+                );
+            }
+        }
+    } else {
+        let _ = writeln!(s, "schedules: none (the paper's MDP table only)");
+    }
     let _ = writeln!(s, "metadata:");
     for (k, v) in b.metadata() {
         let _ = writeln!(s, "  {k} = {v}");

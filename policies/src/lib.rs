@@ -64,6 +64,7 @@ pub mod mdp;
 pub mod plot;
 pub mod replay;
 pub mod report;
+pub mod scoring;
 pub mod stream;
 pub mod sweep;
 pub mod train;

@@ -219,7 +219,7 @@ pub struct Transitions {
     /// Raw counts.
     pub counts: Vec<u64>,
     /// `f1[a · S + s]`: the sum over the row's transitions of the F1 of `a`'s reported
-    /// detections on the next frame ([`crate::eval::frame_f1`]).
+    /// detections on the next frame ([`crate::scoring::frame_f1`]).
     pub f1: Vec<f64>,
 }
 
@@ -251,7 +251,7 @@ impl Transitions {
             for t in 1..video.frames.len() {
                 let (now, next) = (&video.frames[t - 1], &video.frames[t]);
                 let next_f1: Vec<f64> = (0..v_n)
-                    .map(|a| crate::eval::frame_f1(log, video, t, a, iou, min_px))
+                    .map(|a| crate::scoring::frame_f1(log, video, t, a, iou, min_px))
                     .collect();
                 for v in 0..v_n {
                     let s = state(buckets[v].bucket(now.best_score(v)), v, v_n);
@@ -430,7 +430,7 @@ pub fn train_with(
     }
     let mut policy = solve(log, transitions, cfg, training_videos)?;
     // once per policy, not per solve (the α sweep solves many and needs none)
-    policy.reference = u16::try_from(crate::eval::most_accurate(log, cfg.outcome_iou)).ok();
+    policy.reference = u16::try_from(crate::scoring::most_accurate(log, cfg.outcome_iou)).ok();
     Ok(policy)
 }
 

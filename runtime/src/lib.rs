@@ -59,6 +59,7 @@ extern crate std;
 pub mod bundle;
 #[cfg(feature = "std")]
 pub mod cnn;
+pub mod content;
 pub mod controller;
 pub mod crc;
 pub mod geom;

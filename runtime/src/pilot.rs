@@ -72,6 +72,11 @@ use crate::track::{Pyramid, Tracker, TrackerParams};
 /// carried box alone. Either way a reported detection that is not carried makes the
 /// next frame a detection frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "kebab-case")
+)]
 pub enum Carry {
     /// From the variant's optimal bucket up (`c_opt`).
     #[default]

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-const STAGES: [&str; 9] = [
+const STAGES: [&str; 10] = [
     "data",
     "detector",
     "variants",
@@ -14,6 +14,7 @@ const STAGES: [&str; 9] = [
     "replay",
     "policy",
     "evaluation",
+    "budget",
     "bundle",
     "flights",
 ];
@@ -77,14 +78,23 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
         "policy/policy.json",
         "evaluation/eval.json",
         "evaluation/bars-f1.png",
+        "evaluation/speed-f1.png",
+        "budget/heldout/replay.json",
+        "budget/policy.json",
+        "budget/budget.json",
+        "budget/margins.json",
+        "budget/budget-sap.png",
+        "budget/heldout-1/budget.json",
         "bundle/policy.frpb",
         "flights/comparison.json",
         "flights/easy_top_view.png",
         "flights/static/easy/flights.json",
         "flights/adaptive/easy/flights.json",
         "config/run.json",
+        "config/heldout.json",
         "report.md",
         "report.html",
+        "figures.json",
     ] {
         assert!(run.join(f).is_file(), "{f} missing");
     }
@@ -94,6 +104,9 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
         "## Headline figures",
         "frugal train --data",
         "frugal policy eval",
+        "frugal policy budget",
+        "## 6. Budget policies, by streaming AP",
+        "budget/heldout-1/budget-sap.png",
         "frugal fly",
         "![contact sheet](data/contact_sheet.png)",
         "![Pareto front, mAP](pareto/pareto_map.png)",
@@ -101,6 +114,43 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
         "| easy | adaptive (bundle) |",
     ] {
         assert!(md.contains(needle), "report.md lacks {needle:?}");
+    }
+    // the bundle ships the budget tables (section 6) beside the paper's MDP table
+    let inspect = frugal_policies::bundle::inspect(&run.join("bundle")).unwrap();
+    assert!(inspect.contains("schedules: 3 budget tables"), "{inspect}");
+    // every strategy streamed at every budget on the held-out videos, and the figures
+    // a document may quote
+    let held = json(&run.join("budget/heldout-1/budget.json"));
+    for strategy in [
+        "static",
+        "static+tracker",
+        "random+tracker",
+        "approxdet",
+        "mdp+tracker",
+        "budget",
+        "oracle",
+    ] {
+        let rows = held
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|r| r["strategy"] == strategy && r["scenario"] == "all")
+            .count();
+        assert_eq!(rows, 3, "{strategy}: one overall row per budget");
+    }
+    let figures = json(&run.join("figures.json"));
+    for key in [
+        "detector.map",
+        "front.map",
+        "replay.mdp+tracker.speedup",
+        "budget.heldout.33.margin",
+        "flights.easy.fps_ratio",
+        "time.total.min",
+    ] {
+        assert!(
+            figures[key].is_string(),
+            "figures.json lacks {key}: {figures}"
+        );
     }
     let html = std::fs::read_to_string(run.join("report.html")).unwrap();
     assert!(html.contains("<table>") && html.contains("src=\"data/contact_sheet.png\""));

@@ -6,8 +6,7 @@ use anyhow::Context;
 use frugal_data::{Dataset, Split};
 use frugal_policies::budget::{BudgetConfig, train_budget};
 use frugal_policies::budget_eval::{
-    BudgetScore, budget_csv, budget_margins, budget_scores, budget_table, plot_budget,
-    stream_all,
+    BudgetScore, budget_csv, budget_margins, budget_scores, budget_table, plot_budget, stream_all,
 };
 use frugal_policies::eval::{EvalConfig, Strategy, run_all};
 use frugal_policies::replay::{DatasetFrames, VideoLog};

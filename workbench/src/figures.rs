@@ -62,10 +62,7 @@ pub fn collect(run: &Path) -> Figures {
             put("front.map".into(), Some(names.join(" → ")));
             for name in names {
                 if let Some(v) = vs.iter().find(|v| v["name"] == name) {
-                    put(
-                        format!("front.{name}.ms"),
-                        f(&v["latency"]["median_ms"], 2),
-                    );
+                    put(format!("front.{name}.ms"), f(&v["latency"]["median_ms"], 2));
                     put(format!("front.{name}.map"), f(&v["map"], 3));
                     put(format!("front.{name}.map_se"), f(&v["map_se"], 3));
                 }
@@ -112,10 +109,7 @@ pub fn collect(run: &Path) -> Figures {
                 );
                 put(format!("{k}.f1"), f(&s["f1"], 3));
                 put(format!("{k}.speedup"), f(&s["speedup_vs_static"], 2));
-                put(
-                    format!("{k}.ms"),
-                    f(&s["timing"]["device_ms_per_frame"], 1),
-                );
+                put(format!("{k}.ms"), f(&s["timing"]["device_ms_per_frame"], 1));
             }
         }
         if let Some(ms) = read_json(&run.join(dir).join("margins.json")) {
@@ -150,7 +144,10 @@ pub fn collect(run: &Path) -> Figures {
             for who in ["static", "adaptive"] {
                 let s = &r[who];
                 if let (Some(ok), Some(n)) = (s["successes"].as_u64(), s["runs"].as_u64()) {
-                    put(format!("flights.{maze}.{who}.landed"), Some(format!("{ok}/{n}")));
+                    put(
+                        format!("flights.{maze}.{who}.landed"),
+                        Some(format!("{ok}/{n}")),
+                    );
                 }
                 put(format!("flights.{maze}.{who}.fps"), f(&s["fps"]["mean"], 1));
             }
@@ -168,7 +165,10 @@ pub fn collect(run: &Path) -> Figures {
         }
     }
     if total > 0.0 {
-        put("time.total.min".into(), Some(format!("{:.1}", total / 60.0)));
+        put(
+            "time.total.min".into(),
+            Some(format!("{:.1}", total / 60.0)),
+        );
     }
     out
 }
@@ -293,8 +293,12 @@ enum FiguresCommand {
 /// Read a figures file.
 pub fn load(path: &Path) -> anyhow::Result<Figures> {
     let bytes = std::fs::read(path).with_context(|| format!("{}", path.display()))?;
-    serde_json::from_slice(&bytes)
-        .with_context(|| format!("{}: not a figures file (a JSON object of strings)", path.display()))
+    serde_json::from_slice(&bytes).with_context(|| {
+        format!(
+            "{}: not a figures file (a JSON object of strings)",
+            path.display()
+        )
+    })
 }
 
 fn report(doc: &Path, bad: &[Mismatch]) -> String {
@@ -326,7 +330,8 @@ pub fn run(args: FiguresArgs) -> anyhow::Result<()> {
             let mut problems = Vec::new();
             let mut n = 0;
             for d in &docs {
-                let text = std::fs::read_to_string(d).with_context(|| format!("{}", d.display()))?;
+                let text =
+                    std::fs::read_to_string(d).with_context(|| format!("{}", d.display()))?;
                 n += quoted(&text).len();
                 let bad = check(&text, &figs);
                 if !bad.is_empty() {
@@ -352,14 +357,16 @@ pub fn run(args: FiguresArgs) -> anyhow::Result<()> {
             for (from, name) in crate::run::published_files() {
                 let src = run.join(from);
                 if src.exists() {
-                    let bytes = std::fs::read(&src).with_context(|| format!("{}", src.display()))?;
+                    let bytes =
+                        std::fs::read(&src).with_context(|| format!("{}", src.display()))?;
                     frugal_data::dataset::write_atomic(&to.join(name), &bytes)?;
                 }
             }
             for d in &docs {
-                let text = std::fs::read_to_string(d).with_context(|| format!("{}", d.display()))?;
-                let new = update(&text, &figs)
-                    .map_err(|m| anyhow::anyhow!("{}", report(d, &[m])))?;
+                let text =
+                    std::fs::read_to_string(d).with_context(|| format!("{}", d.display()))?;
+                let new =
+                    update(&text, &figs).map_err(|m| anyhow::anyhow!("{}", report(d, &[m])))?;
                 frugal_data::dataset::write_atomic(d, new.as_bytes())?;
             }
             println!(

@@ -4,7 +4,7 @@
 use anyhow::Context;
 use clap::{Args, ValueEnum};
 use frugal_data::Source;
-use frugal_policies::eval::CarryFrom;
+use frugal_runtime::pilot::Carry;
 use frugal_sim::report::{self, GifRecorder, Summary};
 use frugal_sim::{
     CameraSpec, DeviceProfile, FlightConfig, FlightResult, FootageRecorder, FrameView,
@@ -42,7 +42,7 @@ pub struct FlyArgs {
     /// The names are the run config's `[flights] carry` (possible values: optimal,
     /// good-enough, reported).
     #[arg(long, default_value = "optimal", value_parser = parse_carry)]
-    pub carry: CarryFrom,
+    pub carry: Carry,
     /// ONNX Runtime intra-op threads for detector-based perception.
     #[arg(long, default_value_t = 1)]
     pub threads: usize,
@@ -93,7 +93,7 @@ pub struct FlyArgs {
 
 /// `--carry NAME`: the run config's name of a carry (`[flights] carry`), so that the
 /// flights stage passes it through as it is.
-fn parse_carry(name: &str) -> Result<CarryFrom, String> {
+fn parse_carry(name: &str) -> Result<Carry, String> {
     serde_json::from_value(serde_json::Value::String(name.into())).map_err(|e| e.to_string())
 }
 
@@ -133,7 +133,7 @@ fn perception(args: &FlyArgs) -> anyhow::Result<Box<dyn Perception>> {
             Box::new(
                 frugal_sim::AdaptivePerception::open(dir, args.threads)
                     .map_err(|e| anyhow::anyhow!("{e}"))?
-                    .with_carry(args.carry.into()),
+                    .with_carry(args.carry),
             )
         }
     })
@@ -158,7 +158,7 @@ pub fn run(args: FlyArgs) -> anyhow::Result<()> {
     }
     anyhow::ensure!(args.seeds >= 1, "--seeds must be at least 1");
     anyhow::ensure!(
-        args.carry == CarryFrom::Optimal || args.perception == PerceptionKind::Adaptive,
+        args.carry == Carry::Optimal || args.perception == PerceptionKind::Adaptive,
         "--carry other than optimal applies to the adaptive runtime's trackers (--perception adaptive)"
     );
     anyhow::ensure!(
@@ -299,17 +299,13 @@ fn fly_maze(
 
 #[cfg(test)]
 mod tests {
-    use frugal_policies::eval::CarryFrom;
+    use frugal_runtime::pilot::Carry;
 
     /// The run's flights stage passes `[flights] carry` to `frugal fly --carry` by its
     /// config name: every name must be a value the CLI takes, meaning the same carry.
     #[test]
     fn every_run_config_carry_is_a_fly_carry_value() {
-        for carry in [
-            CarryFrom::Optimal,
-            CarryFrom::GoodEnough,
-            CarryFrom::Reported,
-        ] {
+        for carry in [Carry::Optimal, Carry::GoodEnough, Carry::Reported] {
             let name = serde_json::to_value(carry).unwrap();
             let name = name.as_str().unwrap();
             assert_eq!(super::parse_carry(name), Ok(carry), "{name}");

@@ -5,12 +5,13 @@ use super::fixture::log2;
 use frugal_data::Split;
 use frugal_policies::PolicyConfig;
 use frugal_policies::bundle::{BUNDLE_FILE, inspect, read_bundle, verify, write_bundle};
-use frugal_policies::eval::{CarryFrom, EvalConfig, Strategy, run_with_bundle, strategy_bundle};
+use frugal_policies::eval::{EvalConfig, Strategy, run_with_bundle, strategy_bundle};
 use frugal_policies::replay::VideoLog;
 use frugal_policies::train::{TrainedPolicy, train};
 use frugal_policies::variants::VariantSource;
 use frugal_runtime::Bundle;
 use frugal_runtime::bundle::Bucket;
+use frugal_runtime::pilot::Carry;
 
 /// The trained fixture policy whose expensive variant points at a folder of two fake
 /// ONNX graphs (the writer copies and hashes files; it does not load them).
@@ -171,11 +172,7 @@ fn the_runtime_pilot_flies_the_replay_frame_by_frame() {
     let levels = TrackerParams::DEFAULT.lk.levels;
     // (tracked frames, detection frames with a reported box left untracked) per carry
     let mut counts = Vec::new();
-    for carry in [
-        CarryFrom::Optimal,
-        CarryFrom::GoodEnough,
-        CarryFrom::Reported,
-    ] {
+    for carry in [Carry::Optimal, Carry::GoodEnough, Carry::Reported] {
         let cfg = EvalConfig {
             carry,
             ..EvalConfig::default()
@@ -197,7 +194,7 @@ fn the_runtime_pilot_flies_the_replay_frame_by_frame() {
                 let mut pilot: Pilot<'_, 4, TRACK_POINTS> =
                     Pilot::new(Bundle::parse(&bytes).unwrap())
                         .with_max_tracks(cfg.max_tracks)
-                        .with_carry(cfg.carry.into());
+                        .with_carry(cfg.carry);
                 let mut prev = Pyramid::new(&mut a, w, h, levels).unwrap();
                 let mut cur = Pyramid::new(&mut b, w, h, levels).unwrap();
                 for (fi, (f, trace)) in video.frames.iter().zip(&run.frames).enumerate() {

@@ -134,12 +134,12 @@
 #[cfg(feature = "std")]
 pub mod write;
 
-use crate::crc::Crc32;
-use crate::geom::VariantId;
-use crate::schedule::{
+use crate::content::{
     BudgetInfo, CONTENT_STATES, COUNT_BUCKETS, ContentEdges, MAX_BUDGETS, MAX_PERIOD, MAX_PERIODS,
     MOTION_BUCKETS, SIZE_BUCKETS, ScheduleAction,
 };
+use crate::crc::Crc32;
+use crate::geom::VariantId;
 use core::fmt;
 
 /// The magic number, stored little-endian as the bytes `"FRPB"`.

@@ -25,12 +25,12 @@ use super::{
     BUCKET_COUNT, Bundle, BundleError, FORMAT_VERSION, HEADER_LEN, MAGIC, SECTION_ENTRY_LEN,
     ScoreBuckets, SectionKind, Thresholds,
 };
-use crate::crc::{Crc32, crc32};
-use crate::geom::VariantId;
-use crate::schedule::{
+use crate::content::{
     BudgetInfo, CONTENT_STATES, COUNT_BUCKETS, ContentEdges, MAX_BUDGETS, MAX_PERIOD, MAX_PERIODS,
     MOTION_BUCKETS, SIZE_BUCKETS, ScheduleAction,
 };
+use crate::crc::{Crc32, crc32};
+use crate::geom::VariantId;
 use std::fmt;
 use std::string::String;
 use std::vec::Vec;

@@ -13,7 +13,8 @@ use frugal_models::compress::Grid;
 use frugal_models::config::Config as DetectorConfig;
 use frugal_policies::PolicyConfig;
 use frugal_policies::budget::BudgetConfig;
-use frugal_policies::eval::{CarryFrom, EvalConfig};
+use frugal_policies::eval::EvalConfig;
+use frugal_runtime::pilot::Carry;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -109,7 +110,7 @@ pub struct FlightSettings {
     /// Which detections the adaptive runtime carries with its trackers (`frugal fly
     /// --carry`): `"optimal"` (the default profile's, as its replay evaluation),
     /// `"good-enough"` or `"reported"` (the paper's rule; the flight config's).
-    pub carry: CarryFrom,
+    pub carry: Carry,
 }
 
 /// The whole pipeline's configuration.
@@ -262,7 +263,7 @@ impl RunConfig {
             time_limit_s: 900.0,
             threads: 1,
             gif: true,
-            carry: CarryFrom::Optimal,
+            carry: Carry::Optimal,
         };
         Ok(match profile {
             Profile::Default => RunConfig {
@@ -505,12 +506,17 @@ impl RunConfig {
             ));
         }
         self.budget.check(path).context("in section [budget]")?;
-        self.heldout.validate(path).context("in section [heldout]")?;
+        self.heldout
+            .validate(path)
+            .context("in section [heldout]")?;
         let (h, d) = (&self.heldout, &self.data);
         if h.seed == d.seed {
             return Err(bad(
                 "heldout.seed",
-                format!("{} is [data]'s seed: held-out videos need a seed of their own", h.seed),
+                format!(
+                    "{} is [data]'s seed: held-out videos need a seed of their own",
+                    h.seed
+                ),
             ));
         }
         if (h.width, h.height) != (d.width, d.height) {
@@ -737,8 +743,8 @@ mod tests {
         assert_eq!((cfg.policy.alpha, cfg.policy.outcome_min_px), (0.2, 24.0));
         // its flights carry every reported detection (the paper's rule); the default
         // profile's carry from the optimal bucket, as its replay evaluation
-        assert_eq!(cfg.flights.carry, CarryFrom::Reported);
-        assert_eq!(default.flights.carry, CarryFrom::Optimal);
+        assert_eq!(cfg.flights.carry, Carry::Reported);
+        assert_eq!(default.flights.carry, Carry::Optimal);
         let footage = cfg.replay.footage.clone().unwrap();
         assert_eq!(footage.mazes, ["train-a", "train-b", "train-c"]);
         assert!(footage.mazes.iter().all(|m| !cfg.flights.mazes.contains(m)));

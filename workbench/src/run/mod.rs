@@ -10,6 +10,7 @@
 //! stamp matches is skipped; a killed stage is redone (training resumes from its last
 //! epoch checkpoint), so a killed run, started again, ends with the same artifacts.
 mod config;
+mod flights;
 mod report;
 mod stage;
 

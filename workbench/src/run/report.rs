@@ -1,72 +1,11 @@
 //! The run's report: `report.md` and the same as a self-contained `report.html`
-//! (images linked relative to the run folder, so it opens offline), plus the flights'
-//! static-against-adaptive comparison.
-use super::config::RunConfig;
+//! (images linked relative to the run folder, so it opens offline).
+use super::flights::FlightRow;
 use super::stage::{Ctx, Outcome};
-use anyhow::Context;
 use frugal_data::dataset::write_atomic;
-use frugal_sim::report::{Stat, Summary, plot_top_view, summarize};
-use frugal_sim::{FlightResult, Maze};
-use serde::Serialize;
 use serde_json::Value;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-
-/// One maze of the flights comparison.
-#[derive(Clone, Debug, Serialize, serde::Deserialize)]
-pub(crate) struct FlightRow {
-    /// Maze name.
-    pub maze: String,
-    /// The static variant flown.
-    pub static_variant: String,
-    /// Static perception.
-    pub r#static: Summary,
-    /// Adaptive perception (the bundle).
-    pub adaptive: Summary,
-    /// Adaptive frame rate over static.
-    pub fps_ratio: f64,
-    /// Static time to goal over adaptive (both must have landed at least once).
-    pub time_ratio: Option<f64>,
-}
-
-fn read_results(path: &Path) -> anyhow::Result<Vec<FlightResult>> {
-    let bytes = std::fs::read(path).with_context(|| format!("{}", path.display()))?;
-    serde_json::from_slice(&bytes).with_context(|| format!("{}", path.display()))
-}
-
-/// Compare the static and adaptive flights under `out` maze by maze, and draw both
-/// perceptions' trajectories on one top view per maze (`<out>/<maze>_top_view.*`).
-pub(crate) fn compare_flights(
-    out: &Path,
-    config: &RunConfig,
-    static_variant: &str,
-) -> anyhow::Result<Vec<FlightRow>> {
-    let mut rows = Vec::new();
-    for m in &config.flights.mazes {
-        let maze = Maze::resolve(Path::new(m))?;
-        let st = read_results(&out.join("static").join(&maze.name).join("flights.json"))?;
-        let ad = read_results(&out.join("adaptive").join(&maze.name).join("flights.json"))?;
-        let both: Vec<FlightResult> = st.iter().chain(&ad).cloned().collect();
-        plot_top_view(&out.join(format!("{}_top_view", maze.name)), &maze, &both)?;
-        let (s, a) = (summarize(&st), summarize(&ad));
-        let ratio = |num: &Stat, den: &Stat| {
-            (num.n > 0 && den.n > 0 && den.mean > 0.0).then(|| num.mean / den.mean)
-        };
-        rows.push(FlightRow {
-            maze: maze.name.clone(),
-            static_variant: static_variant.into(),
-            fps_ratio: if s.fps.mean > 0.0 {
-                a.fps.mean / s.fps.mean
-            } else {
-                0.0
-            },
-            time_ratio: ratio(&s.time_to_goal_s, &a.time_to_goal_s),
-            r#static: s,
-            adaptive: a,
-        });
-    }
-    Ok(rows)
-}
 
 fn read_json(path: &Path) -> Option<Value> {
     serde_json::from_slice(&std::fs::read(path).ok()?).ok()
@@ -397,7 +336,10 @@ pub(crate) fn write(ctx: &Ctx, outcomes: &[Outcome], seconds: f64) -> anyhow::Re
 
     let md_path = run.join("report.md");
     write_atomic(&md_path, md.as_bytes())?;
-    frugal_data::dataset::write_json_atomic(&run.join("figures.json"), &crate::figures::collect(run))?;
+    frugal_data::dataset::write_json_atomic(
+        &run.join("figures.json"),
+        &crate::figures::collect(run),
+    )?;
     let mut body = String::new();
     let parser = pulldown_cmark::Parser::new_ext(&md, pulldown_cmark::Options::ENABLE_TABLES);
     pulldown_cmark::html::push_html(&mut body, parser);

@@ -701,7 +701,7 @@ impl Ctx {
             ad.push("--gif".into());
         }
         let commands = vec![self.frugal(&self.quiet(st))?, self.frugal(&self.quiet(ad))?];
-        let rows = super::report::compare_flights(out, &self.config, &static_name)?;
+        let rows = super::flights::compare_flights(out, &self.config, &static_name)?;
         write_json(&out.join("comparison.json"), &rows)?;
         Ok(commands)
     }
