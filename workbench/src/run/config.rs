@@ -322,11 +322,7 @@ impl RunConfig {
                 budget: BudgetConfig::default(),
                 heldout: GenConfig {
                     seed: 2031,
-                    videos_per_combo: 2,
-                    val_per_combo: 1,
-                    test_per_combo: 1,
                     frames_per_video: 30,
-                    train_frames_per_video: 0,
                     ..GenConfig::quick()
                 },
                 flights: FlightSettings {

@@ -510,8 +510,8 @@ impl Ctx {
                 write_json(&held_cfg, &c.heldout)?;
                 let held_log = arg(&held.join("replay.json"));
                 let record = self.record_args(&held.join("data"), &held_log, "test", "val");
+                // written by the evaluation stage, which runs (or is skipped) first
                 let eval_cfg = self.run.join("config/evaluation.json");
-                write_json(&eval_cfg, &c.evaluation)?;
                 vec![
                     self.frugal(&self.quiet(vec![
                         s("data"),
