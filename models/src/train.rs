@@ -15,6 +15,8 @@
 //! the data order of epoch `e` (ChaCha8 stream `e`) and each step's sampling and
 //! augmentation (ChaCha8 and `tch::manual_seed` seeded from `(seed, step)`), so a
 //! resumed run takes the same steps as an uninterrupted one.
+//!
+//! Over 600 lines only with its unit tests (the last 70).
 use crate::config::{Config, TrainConfig};
 use crate::frames::scenario;
 use crate::loss::image_losses;

@@ -4,6 +4,9 @@
 //! [`front_within_noise`] only counts differences larger than the measurement noise
 //! of the two points compared; see [`NoisyPoint`] for the comparisons and
 //! [`front_within_noise`] for the rule.
+//!
+//! Over 600 lines with its unit tests (the last 530, among them the ±15 % perturbation
+//! test).
 
 /// One candidate on the accuracy-latency plane.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -498,12 +498,7 @@ pub fn plot_lines(
     axes: (&str, &str),
     series: &[(String, Vec<(f64, f64)>)],
 ) -> Result<()> {
-    both(
-        stem,
-        (900, 600),
-        &|r| lines_draw(r, title, axes, series, true),
-        &|r| lines_draw(r, title, axes, series, true),
-    )
+    series_plot(stem, title, axes, series, true)
 }
 
 /// Points, one colour per named series, not joined (e.g. one strategy's figure per
@@ -514,10 +509,20 @@ pub fn plot_points(
     axes: (&str, &str),
     series: &[(String, Vec<(f64, f64)>)],
 ) -> Result<()> {
+    series_plot(stem, title, axes, series, false)
+}
+
+fn series_plot(
+    stem: &Path,
+    title: &str,
+    axes: (&str, &str),
+    series: &[(String, Vec<(f64, f64)>)],
+    join: bool,
+) -> Result<()> {
     both(
         stem,
         (900, 600),
-        &|r| lines_draw(r, title, axes, series, false),
-        &|r| lines_draw(r, title, axes, series, false),
+        &|r| lines_draw(r, title, axes, series, join),
+        &|r| lines_draw(r, title, axes, series, join),
     )
 }

@@ -5,6 +5,9 @@
 //! The renderer also reports the ground truth of each frame ([`FrameTruth`]): for every
 //! sign board, the box covering exactly the pixels where the board was drawn (same
 //! rays, same projection), its depth and how much of it was visible.
+//!
+//! One renderer: the wall, floor, sprite and lighting passes share the camera, the
+//! z-buffer and the frame buffer, and read best in order.
 use crate::maze::{Dir, Lighting, Maze, Mount};
 use crate::texture::{self, WallKind};
 use frugal_data::sign::{SignStyle, render_sign};

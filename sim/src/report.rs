@@ -1,6 +1,9 @@
 //! Results people look at: the paper's table (mean ± spread over seeds), JSON and CSV
 //! files, the top view of the maze with every flight's trajectory (PNG and SVG), and
 //! camera frames (PNG, animated GIF) with the detections drawn on them.
+//!
+//! Every output of the flights in one place: the table, JSON/CSV, the top view and the
+//! frame pictures share the drawing and the summary types.
 use crate::flight::{FlightResult, FrameView, Outcome};
 use crate::maze::{Dir, Maze, Mount, cell_center};
 use crate::render::Board;

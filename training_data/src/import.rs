@@ -16,6 +16,10 @@
 //! classes are dropped. Images without a `video` become one video each; splits come
 //! from the source (`split` extra), from the `split` option, or else from a fixed hash
 //! of the video id (≈70 % train, 15 % val, 15 % test), so splits never share a video.
+//!
+//! One file for three still-image formats that share the split, class-mapping and
+//! writing code; each format moves to a module of its own when video annotation formats
+//! join them.
 use crate::coco::{CocoFile, check_box};
 use crate::dataset::PartialDir;
 use crate::generate::encode_png;

@@ -14,6 +14,8 @@
 //! box is at least `min_visible_px` wide and high and its visible (unblurred,
 //! un-occluded, in-frame) area is at least `min_visible_fraction` of the whole sign's
 //! area; signs below that are still drawn (like partly visible signs in real footage).
+//!
+//! Over 600 lines with its unit tests (the last 250).
 use crate::raster::{Canvas, Shape, coverage};
 use crate::scene::draw_world;
 use crate::sign::{SignStyle, paint_sign, to_u8};

@@ -23,6 +23,9 @@
 //!
 //! Scoring is spread over scales with rayon; results are merged in a fixed order and
 //! sorted stably, so proposals are deterministic.
+//!
+//! One algorithm, its steps in the paper's order (edges, groups, affinities, box
+//! scoring, search, NMS); its unit tests are the last 95 lines.
 
 use crate::edges::{EdgeConfig, EdgeMap, edge_map};
 use crate::error::{Error, Result};

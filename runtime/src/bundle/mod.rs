@@ -130,6 +130,9 @@
 //! ([`crate::schedule::Content::index`]). An action `a`
 //! encodes the variant `a / P` and the period index `a % P`. The section is exactly
 //! `36 + 16 K + 2 K S` bytes.
+//!
+//! One file on purpose: the byte layout documented above and the zero-copy parser that
+//! checks every field of it are read side by side (the writer is `write.rs`).
 
 #[cfg(feature = "std")]
 pub mod write;

@@ -6,6 +6,8 @@
 //! with a `kind` or `method` key) replace the profile's whole. Everything is checked
 //! before any work starts: an unknown key is named with its path and the keys allowed
 //! there, a value out of range with its section, a maze that does not exist by name.
+//!
+//! Over 600 lines with its unit tests (the last 175).
 use anyhow::{Context, bail};
 use clap::ValueEnum;
 use frugal_data::GenConfig;

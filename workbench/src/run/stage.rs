@@ -1,5 +1,9 @@
 //! The stages of `frugal run`, their inputs hash, and the partial-folder / stamp /
 //! rename protocol that makes a killed run restartable.
+//!
+//! Long because it holds the ten stages' command lines (`Ctx::exec`) next to the
+//! protocol that runs, stamps and skips them; a stage's inputs hash and its commands
+//! must change together.
 use super::RunArgs;
 use super::config::{FootageSettings, RunConfig};
 use anyhow::{Context, bail};
@@ -492,18 +496,7 @@ impl Ctx {
                 }
                 vec![self.frugal(&a)?]
             }
-            "evaluation" => vec![self.frugal(&[
-                s("policy"),
-                s("eval"),
-                s("--log"),
-                arg(&self.dir("replay").join("replay.json")),
-                s("--policy"),
-                arg(&self.dir("policy").join("policy.json")),
-                s("--out"),
-                arg(out),
-                s("--config"),
-                cfg(),
-            ])?],
+            "evaluation" => vec![self.frugal(&self.policy_args("eval", out, cfg()))?],
             "budget" => {
                 let held = out.join("heldout");
                 let held_cfg = self.run.join("config/heldout.json");
@@ -522,22 +515,13 @@ impl Ctx {
                         arg(&held.join("data")),
                     ]))?,
                     self.frugal(&self.quiet(record))?,
-                    self.frugal(&[
-                        s("policy"),
-                        s("budget"),
-                        s("--log"),
-                        arg(&self.dir("replay").join("replay.json")),
-                        s("--policy"),
-                        arg(&self.dir("policy").join("policy.json")),
-                        s("--out"),
-                        arg(out),
-                        s("--config"),
-                        cfg(),
-                        s("--eval-config"),
-                        arg(&eval_cfg),
-                        s("--heldout"),
-                        held_log,
-                    ])?,
+                    self.frugal(
+                        &[
+                            self.policy_args("budget", out, cfg()),
+                            vec![s("--eval-config"), arg(&eval_cfg), s("--heldout"), held_log],
+                        ]
+                        .concat(),
+                    )?,
                 ]
             }
             "bundle" => {
@@ -598,6 +582,25 @@ impl Ctx {
             self.frugal(&self.quiet(fly))?,
             self.frugal(&self.quiet(replay))?,
         ])
+    }
+
+    /// `frugal policy <command>` over the replay stage's log and the policy stage's
+    /// policy, writing into `out`, with `config`.
+    fn policy_args(&self, command: &str, out: &Path, config: String) -> Vec<String> {
+        let replay = self.dir("replay").join("replay.json");
+        let policy = self.dir("policy").join("policy.json");
+        vec![
+            "policy".into(),
+            command.into(),
+            "--log".into(),
+            arg(&replay),
+            "--policy".into(),
+            arg(&policy),
+            "--out".into(),
+            arg(out),
+            "--config".into(),
+            config,
+        ]
     }
 
     /// `frugal policy record` of the Pareto stage's variants on `data`'s `splits` into

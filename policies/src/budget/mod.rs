@@ -1,0 +1,351 @@
+//! The budget policy: which variant to run and how many frames to track before the
+//! next detection, under an explicit per-frame latency budget, from what the frame
+//! shows (`frugal policy budget`).
+//!
+//! # State, action, objective
+//!
+//! - **State**: the paper's (confidence bucket of the last detection, current variant)
+//!   plus the content the runtime has for free ([`Content`]: the size bucket of the
+//!   largest box shown, the motion bucket of its centre, the object-count bucket);
+//!   numbered as the runtime's [`state_index`].
+//! - **Action**: (variant, detect-every-`N`), `N` from [`BudgetConfig::periods`] (as
+//!   ApproxDet's "sampling interval"): detect with the variant, carry every reported
+//!   box with the KLT tracker for up to `N − 1` frames (a lost track ends the segment
+//!   early), then decide again.
+//! - **Objective** (a constrained semi-MDP, solved by Lagrangian relaxation): maximise
+//!   the discounted sum of per-frame F1 (`2tp / (2tp + fp + fn)` of what each frame
+//!   shows, 1 on a frame with nothing to find and nothing shown) subject to an
+//!   expected device compute per frame ≤ the budget. A segment of `L` frames costing
+//!   `C` device-ms earns `Σ F1 − λ (C / budget − L) − κ [variant changed]`; `λ ≥ 0`
+//!   is the smallest (bisection) whose policy, rolled out on the training videos,
+//!   spends at most the budget per frame; `κ` ([`BudgetConfig::switch_cost`]) pays
+//!   for switching variants. Unlike the paper's `w / r(s')^α`, where `α` trades
+//!   accuracy for cost at a rate nobody can read off a latency requirement, the
+//!   budget is the requirement itself, in milliseconds on the device.
+//!
+//! # Estimation
+//!
+//! Every training frame `t`, every variant `v` and every period: the segment that
+//! starts with `v` detecting frame `t` is replayed once (the logged detections, the
+//! real KLT tracker on the real frames). Samples `(s, a, reward, s', L)` come from
+//! pairing each segment ending at `t` (any variant, any period: the state it leaves)
+//! with each segment starting at `t`. Rewards and transitions of a state with few
+//! samples are shrunk towards those of its content alone, and those towards the
+//! action's mean ([`BudgetConfig::smoothing`] samples of weight), so that a state the
+//! training videos seldom reach still gets a sensible action.
+
+mod perceiver;
+mod segments;
+mod solve;
+
+pub use perceiver::Perceiver;
+pub use segments::{Segment, video_segments};
+pub use solve::train_budget;
+
+use crate::error::{PolicyError, Result};
+pub(crate) use crate::scoring::{reported, truth};
+use frugal_models::metrics::{ImageResult, Truth, image_counts};
+use frugal_runtime::bundle::write::{BudgetSpec, ScheduleSpec};
+use frugal_runtime::schedule::{BudgetInfo, Content, ContentEdges, ScheduleAction, largest_box};
+use frugal_runtime::{BBox, Detection};
+use serde::{Deserialize, Serialize};
+
+/// How the budget policies are learnt and evaluated.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct BudgetConfig {
+    /// Per-frame latency budgets, ms on the device (one policy table each).
+    pub budgets_ms: Vec<f64>,
+    /// The device profile's name.
+    pub device: String,
+    /// Device time over measured time (the profile's slowdown; tx2-like: 6).
+    pub slowdown: f64,
+    /// Detect-every-`N` choices, ascending, 1..=255 (at most 4).
+    pub periods: Vec<u32>,
+    /// `κ`: reward lost by switching variants (in frames of F1).
+    pub switch_cost: f64,
+    /// Per-frame discount `γ`, in `[0, 1)`.
+    pub gamma: f64,
+    /// Weight, in samples, of the coarser estimate a state's estimate is shrunk to.
+    pub smoothing: f64,
+    /// Most objects tracked at once.
+    pub max_tracks: usize,
+    /// Frame rate of the videos, frames per second.
+    pub fps: f64,
+    /// What happens to frames that arrive while perception is busy.
+    pub rule: crate::stream::FrameRule,
+    /// The ApproxDet-style scheduler's headroom: it keeps the expected latency under
+    /// `budget / headroom`.
+    pub approxdet_headroom: f64,
+    /// The ApproxDet-style scheduler re-schedules every this many frames.
+    pub approxdet_every: u32,
+    /// Size edges (px) of the content state.
+    pub size_px: [f32; 2],
+    /// Motion edges (px per frame) of the content state.
+    pub motion_px: [f32; 2],
+    /// Seed of the random strategy and of the clock's jitter.
+    pub seed: u64,
+    /// Each video is streamed this many times, each frame's compute time drawn anew
+    /// within ±`jitter` of its measured value, and the pairs of every run pooled: on a
+    /// 30 fps clock a change of a fraction of a millisecond can shift which frames are
+    /// skipped for the rest of a video, so one run is one sample of the figure.
+    pub clock_runs: u32,
+    /// Relative jitter of the compute times between clock runs (0 = none).
+    pub jitter: f64,
+}
+
+impl Default for BudgetConfig {
+    fn default() -> Self {
+        let e = ContentEdges::DEFAULT;
+        Self {
+            budgets_ms: vec![33.0, 16.0, 8.0],
+            device: "tx2-like".into(),
+            slowdown: 6.0,
+            periods: vec![1, 2, 4, 8],
+            switch_cost: 0.02,
+            gamma: 0.8,
+            smoothing: 5.0,
+            max_tracks: 4,
+            fps: 30.0,
+            rule: crate::stream::FrameRule::Latest,
+            approxdet_headroom: 1.3,
+            approxdet_every: 8,
+            size_px: e.size_px,
+            motion_px: e.motion_px,
+            seed: 7,
+            clock_runs: 8,
+            jitter: 0.05,
+        }
+    }
+}
+
+impl BudgetConfig {
+    /// The content edges.
+    pub fn edges(&self) -> ContentEdges {
+        ContentEdges {
+            size_px: self.size_px,
+            motion_px: self.motion_px,
+        }
+    }
+
+    /// Checks every value; `path` names the file in the error.
+    pub fn check(&self, path: &std::path::Path) -> Result<()> {
+        let bad = |field: &str, m: &str| Err(PolicyError::invalid(path, field, m.to_string()));
+        if self.budgets_ms.is_empty()
+            || self.budgets_ms.len() > frugal_runtime::schedule::MAX_BUDGETS
+            || self.budgets_ms.iter().any(|b| !(b.is_finite() && *b > 0.0))
+        {
+            return bad("budgets_ms", "1 to 8 budgets, each finite and > 0");
+        }
+        if !(self.slowdown.is_finite() && self.slowdown > 0.0) {
+            return bad("slowdown", "must be finite and > 0");
+        }
+        if self.periods.is_empty()
+            || self.periods.len() > frugal_runtime::schedule::MAX_PERIODS
+            || self.periods.windows(2).any(|w| w[0] >= w[1])
+            || self.periods.iter().any(|&p| p == 0 || p > 255)
+        {
+            return bad(
+                "periods",
+                "1 to 4 periods, strictly ascending, each in 1..=255",
+            );
+        }
+        if !(0.0..1.0).contains(&self.gamma) {
+            return bad("gamma", "must be in [0, 1)");
+        }
+        if !(self.fps.is_finite() && self.fps > 0.0) {
+            return bad("fps", "must be finite and > 0");
+        }
+        if !(self.approxdet_headroom.is_finite() && self.approxdet_headroom >= 1.0) {
+            return bad("approxdet_headroom", "must be >= 1");
+        }
+        if self.clock_runs == 0 || !(0.0..1.0).contains(&self.jitter) {
+            return bad("clock_runs", "clock_runs must be >= 1 and jitter in [0, 1)");
+        }
+        if self.approxdet_every == 0 || self.max_tracks == 0 {
+            return bad(
+                "approxdet_every",
+                "approxdet_every and max_tracks must be >= 1",
+            );
+        }
+        if !(self.switch_cost.is_finite() && self.switch_cost >= 0.0 && self.smoothing >= 0.0) {
+            return bad(
+                "switch_cost",
+                "switch_cost and smoothing must be finite and >= 0",
+            );
+        }
+        Ok(())
+    }
+
+    /// The action index of (variant, period index).
+    pub fn action(&self, variant: usize, period: usize) -> usize {
+        variant * self.periods.len() + period
+    }
+}
+
+/// The F1 of what a frame shows, 1 when there is nothing to find and nothing shown.
+pub fn shown_f1(shown: &[Detection], truth: &[Truth], iou: f32) -> f64 {
+    let (tp, fp, fneg) = image_counts(
+        &ImageResult {
+            detections: shown.to_vec(),
+            truth: truth.to_vec(),
+        },
+        iou,
+        f32::NEG_INFINITY,
+    );
+    if tp + fp + fneg == 0 {
+        1.0
+    } else {
+        (2 * tp) as f64 / (2 * tp + fp + fneg) as f64
+    }
+}
+
+/// The largest box of a frame's output, as the runtime's scheduler takes it.
+pub fn largest(shown: &[Detection]) -> Option<BBox> {
+    largest_box(shown.iter().map(|d| d.bbox))
+}
+
+/// How the trackers fared on a frame (the runtime's [`frugal_runtime::schedule::TrackState`]).
+pub use frugal_runtime::schedule::TrackState;
+
+/// A policy per budget, with what training measured of it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BudgetPolicy {
+    /// The budget, device ms per frame.
+    pub budget_ms: f64,
+    /// The Lagrange multiplier found.
+    pub lambda: f64,
+    /// Device ms per frame of its rollouts on the training videos.
+    pub expected_ms: f64,
+    /// 95th percentile over training videos of the device ms per frame.
+    pub p95_ms: f64,
+    /// Mean per-frame F1 of its rollouts on the training videos.
+    pub train_f1: f64,
+    /// Action per state ([`state_index`] order): `variant · P + period index`.
+    pub actions: Vec<u16>,
+}
+
+/// Budget policies for every configured budget, and the ApproxDet-style tables.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BudgetPolicies {
+    /// Settings.
+    pub config: BudgetConfig,
+    /// Variant names (the log's order).
+    pub variants: Vec<String>,
+    /// Device ms of each variant's detection (measured × slowdown).
+    pub variant_device_ms: Vec<f64>,
+    /// The first action (before any state): the cheapest variant, shortest period.
+    pub initial: u16,
+    /// One per budget.
+    pub policies: Vec<BudgetPolicy>,
+    /// ApproxDet-style accuracy table: mean per-frame F1 of each action by content
+    /// (`content · A + action`) on the training videos.
+    pub approx_f1: Vec<f64>,
+    /// Device ms per frame of each action on the training videos.
+    pub action_ms: Vec<f64>,
+    /// Mean per-frame F1 of each variant detecting every frame on the training videos.
+    pub variant_f1: Vec<f64>,
+}
+
+impl BudgetPolicies {
+    /// The runtime action of an action index.
+    pub fn schedule_action(&self, a: usize) -> ScheduleAction {
+        let p = self.config.periods.len();
+        ScheduleAction {
+            variant: (a / p) as u16,
+            period: self.config.periods[a % p],
+        }
+    }
+
+    /// The runtime's form: one table per budget, for the bundle.
+    pub fn schedule_spec(&self) -> ScheduleSpec {
+        ScheduleSpec {
+            edges: self.config.edges(),
+            periods: self.config.periods.clone(),
+            initial: self.schedule_action(usize::from(self.initial)),
+            budgets: self
+                .policies
+                .iter()
+                .map(|p| BudgetSpec {
+                    info: BudgetInfo {
+                        budget_ms: p.budget_ms as f32,
+                        slowdown: self.config.slowdown as f32,
+                        expected_ms: p.expected_ms as f32,
+                        p95_ms: p.p95_ms as f32,
+                    },
+                    actions: p
+                        .actions
+                        .iter()
+                        .map(|&a| self.schedule_action(usize::from(a)))
+                        .collect(),
+                })
+                .collect(),
+        }
+    }
+
+    /// The actions a policy under `budget_ms` may take: those whose device ms per frame
+    /// (on the training videos) fit the budget; the cheapest alone when none does. So
+    /// the policy never runs a variant that breaks the budget while a cheaper choice
+    /// keeps it, and the expected-latency constraint decides among the rest.
+    pub fn allowed(&self, budget_ms: f64) -> Vec<usize> {
+        let a_n = self.action_ms.len();
+        let fits: Vec<usize> = (0..a_n)
+            .filter(|&a| self.action_ms[a] <= budget_ms)
+            .collect();
+        if fits.is_empty() {
+            (0..a_n)
+                .min_by(|&a, &b| self.action_ms[a].total_cmp(&self.action_ms[b]))
+                .into_iter()
+                .collect()
+        } else {
+            fits
+        }
+    }
+
+    /// The ApproxDet-style choice under `budget_ms` for `content`: the most accurate
+    /// action (on the training videos, in this content) whose device ms per frame is at
+    /// most `budget_ms / headroom`; the cheapest action when none is.
+    pub fn approxdet(&self, budget_ms: f64, content: Content) -> usize {
+        let a_n = self.action_ms.len();
+        let f1 = |a: usize| self.approx_f1[content.index() * a_n + a];
+        self.allowed(budget_ms / self.config.approxdet_headroom)
+            .into_iter()
+            .max_by(|&a, &b| {
+                f1(a)
+                    .total_cmp(&f1(b))
+                    .then(self.action_ms[b].total_cmp(&self.action_ms[a]))
+            })
+            .unwrap_or(0)
+    }
+
+    /// The best static variant under `budget_ms`: the most accurate (detecting every
+    /// frame, on the training videos) whose detection fits the budget; the cheapest
+    /// when none does.
+    pub fn static_under(&self, budget_ms: f64) -> usize {
+        let v_n = self.variants.len();
+        let fits: Vec<usize> = (0..v_n)
+            .filter(|&v| self.variant_device_ms[v] <= budget_ms)
+            .collect();
+        if fits.is_empty() {
+            return (0..v_n)
+                .min_by(|&a, &b| self.variant_device_ms[a].total_cmp(&self.variant_device_ms[b]))
+                .unwrap_or(0);
+        }
+        fits.into_iter()
+            .max_by(|&a, &b| {
+                self.variant_f1[a]
+                    .total_cmp(&self.variant_f1[b])
+                    .then(self.variant_device_ms[b].total_cmp(&self.variant_device_ms[a]))
+            })
+            .unwrap_or(0)
+    }
+
+    /// The shortest period whose action with variant `v` fits `budget_ms` (the longest
+    /// when none does): static + tracker.
+    pub fn period_under(&self, v: usize, budget_ms: f64) -> usize {
+        let p = self.config.periods.len();
+        (0..p)
+            .find(|&i| self.action_ms[self.config.action(v, i)] <= budget_ms)
+            .unwrap_or(p - 1)
+    }
+}

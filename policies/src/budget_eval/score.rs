@@ -1,0 +1,322 @@
+//! The budget strategies' scores: streaming AP, F1 and clock figures per budget,
+//! scenario and strategy; the budget policy's margins; tables and plots.
+
+use crate::budget::{BudgetPolicies, truth};
+use crate::error::Result;
+use crate::replay::{ReplayLog, VideoLog};
+use crate::scoring::scenario_groups;
+use crate::stream::{StreamRun, StreamTiming, arrivals, sap, streaming_images, timing};
+use frugal_models::metrics::{ImageResult, Interpolation, evaluate};
+use serde::{Deserialize, Serialize};
+
+use super::{BudgetRun, BudgetStrategy};
+
+/// One strategy at one budget on one scenario.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BudgetScore {
+    /// Budget, device ms per frame.
+    pub budget_ms: f64,
+    /// Scenario (`all` for every video).
+    pub scenario: String,
+    /// Strategy.
+    pub strategy: String,
+    /// Videos.
+    pub videos: usize,
+    /// Streaming AP at IoU 0.5.
+    pub sap50: f64,
+    /// Streaming AP averaged over IoU 0.50:0.95.
+    pub sap: f64,
+    /// F1 of the processed frames' outputs against their own frames (no clock).
+    pub f1: f64,
+    /// Static's device ms per frame over this one's (same budget and scenario).
+    pub speedup_vs_static: f64,
+    /// Detections run.
+    pub detections: usize,
+    /// Clock figures.
+    pub timing: StreamTiming,
+}
+
+/// Scores of runs, each with its video; every clock run's pairs are pooled.
+fn score_runs(
+    log: &ReplayLog,
+    runs: &[(&VideoLog, &BudgetRun)],
+    fps: f64,
+    iou: f32,
+) -> (f64, f64, f64, usize, StreamTiming) {
+    let mut images: Vec<ImageResult> = Vec::new();
+    let mut offline: Vec<ImageResult> = Vec::new();
+    let arrs: Vec<Vec<f64>> = runs
+        .iter()
+        .map(|(v, _)| arrivals(v.frames.len(), fps))
+        .collect();
+    for ((video, r), arr) in runs.iter().zip(&arrs) {
+        let tr: Vec<_> = (0..video.frames.len()).map(|f| truth(video, f)).collect();
+        images.extend(streaming_images(arr, &tr, &r.run));
+        for o in &r.run.outputs {
+            offline.push(ImageResult {
+                detections: o.shown.clone(),
+                truth: tr[o.frame].clone(),
+            });
+        }
+    }
+    let classes = log.classes.max(1);
+    let (s50, s) = sap(&images, classes);
+    let f1 = evaluate(
+        &offline,
+        classes,
+        iou,
+        f32::NEG_INFINITY,
+        Interpolation::AllPoint,
+    )
+    .f1;
+    let detections = runs
+        .iter()
+        .flat_map(|(_, r)| &r.detect)
+        .filter(|d| d.is_some())
+        .count();
+    let pairs: Vec<(&[f64], &StreamRun)> = arrs
+        .iter()
+        .map(Vec::as_slice)
+        .zip(runs.iter().map(|(_, r)| &r.run))
+        .collect();
+    (s50, s, f1, detections, timing(&pairs))
+}
+
+/// Score every (budget, strategy) run per scenario and overall.
+pub fn budget_scores(
+    log: &ReplayLog,
+    videos: &[&VideoLog],
+    pol: &BudgetPolicies,
+    runs: &[(usize, BudgetStrategy, Vec<BudgetRun>)],
+    iou: f32,
+) -> Vec<BudgetScore> {
+    let groups = scenario_groups(videos);
+    let mut out = Vec::new();
+    for (k, &budget) in pol.config.budgets_ms.iter().enumerate() {
+        for (name, ids) in &groups {
+            let sel_videos: Vec<&VideoLog> = videos
+                .iter()
+                .copied()
+                .filter(|v| ids.contains(&v.id))
+                .collect();
+            let mut group: Vec<BudgetScore> = runs
+                .iter()
+                .filter(|(kk, _, _)| *kk == k)
+                .map(|(_, s, rs)| {
+                    let sel: Vec<(&VideoLog, &BudgetRun)> = sel_videos
+                        .iter()
+                        .flat_map(|v| rs.iter().filter(|r| r.video == v.id).map(move |r| (*v, r)))
+                        .collect();
+                    let (sap50, sap, f1, detections, timing) =
+                        score_runs(log, &sel, pol.config.fps, iou);
+                    BudgetScore {
+                        budget_ms: budget,
+                        scenario: name.clone(),
+                        strategy: s.name().into(),
+                        videos: sel_videos.len(),
+                        sap50,
+                        sap,
+                        f1,
+                        speedup_vs_static: 1.0,
+                        detections,
+                        timing,
+                    }
+                })
+                .collect();
+            if let Some(st) = group
+                .iter()
+                .find(|s| s.strategy == "static")
+                .map(|s| s.timing.device_ms_per_frame)
+            {
+                for s in &mut group {
+                    s.speedup_vs_static = if s.timing.device_ms_per_frame > 0.0 {
+                        st / s.timing.device_ms_per_frame
+                    } else {
+                        f64::INFINITY
+                    };
+                }
+            }
+            out.extend(group);
+        }
+    }
+    out
+}
+
+/// The scores as CSV.
+pub fn budget_csv(scores: &[BudgetScore]) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::from(
+        "budget_ms,scenario,strategy,videos,sap50,sap,f1,speedup_vs_static,detections,frames,processed,skipped,deadline_misses,p50_latency_ms,p95_latency_ms,device_ms_per_frame,p95_device_ms\n",
+    );
+    for r in scores {
+        let t = &r.timing;
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{:.6},{:.6},{:.6},{:.4},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3}",
+            r.budget_ms,
+            r.scenario,
+            r.strategy,
+            r.videos,
+            r.sap50,
+            r.sap,
+            r.f1,
+            r.speedup_vs_static,
+            r.detections,
+            t.frames,
+            t.processed,
+            t.skipped,
+            t.deadline_misses,
+            t.p50_latency_ms,
+            t.p95_latency_ms,
+            t.device_ms_per_frame,
+            t.p95_device_ms
+        );
+    }
+    s
+}
+
+/// The budget policy against the others at one budget, over every video.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Margin {
+    /// Budget, device ms per frame.
+    pub budget_ms: f64,
+    /// The budget policy's sAP@0.5.
+    pub budget_sap50: f64,
+    /// The strongest simple baseline (static + tracker, random + tracker, ApproxDet-style)
+    /// at this budget.
+    pub best_baseline: String,
+    /// Its sAP@0.5.
+    pub best_baseline_sap50: f64,
+    /// Budget policy minus each other strategy, sAP@0.5 (0–1), in [`BudgetStrategy::ALL`]
+    /// order.
+    pub versus: Vec<(String, f64)>,
+}
+
+/// The simple baselines the headline compares against.
+const SIMPLE: [BudgetStrategy; 3] = [
+    BudgetStrategy::StaticTracker,
+    BudgetStrategy::RandomTracker,
+    BudgetStrategy::Approxdet,
+];
+
+/// The budget policy's margins at every budget (overall rows).
+pub fn budget_margins(scores: &[BudgetScore]) -> Vec<Margin> {
+    let mut budgets: Vec<f64> = scores.iter().map(|r| r.budget_ms).collect();
+    budgets.sort_by(|a, b| b.total_cmp(a));
+    budgets.dedup();
+    budgets
+        .into_iter()
+        .filter_map(|b| {
+            let row = |s: BudgetStrategy| {
+                scores
+                    .iter()
+                    .find(|r| r.budget_ms == b && r.scenario == "all" && r.strategy == s.name())
+            };
+            let ours = row(BudgetStrategy::Budget)?.sap50;
+            let best = SIMPLE
+                .iter()
+                .filter_map(|&s| row(s))
+                .max_by(|x, y| x.sap50.total_cmp(&y.sap50))?;
+            Some(Margin {
+                budget_ms: b,
+                budget_sap50: ours,
+                best_baseline: best.strategy.clone(),
+                best_baseline_sap50: best.sap50,
+                versus: BudgetStrategy::ALL
+                    .iter()
+                    .filter(|&&s| s != BudgetStrategy::Budget)
+                    .filter_map(|&s| row(s).map(|r| (s.name().to_string(), ours - r.sap50)))
+                    .collect(),
+            })
+        })
+        .collect()
+}
+
+/// The overall rows as a Markdown table, one block per budget, then the budget
+/// policy's margins.
+pub fn budget_table(scores: &[BudgetScore]) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::from(
+        "| budget | strategy | sAP@0.5 | sAP@[.5:.95] | F1 | speed-up vs static | device ms/frame | skipped | deadline misses | P50 / P95 latency, ms |\n|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in scores.iter().filter(|r| r.scenario == "all") {
+        let t = &r.timing;
+        let _ = writeln!(
+            s,
+            "| {} ms | {} | {:.1} | {:.1} | {:.3} | {:.2}× | {:.1} | {} / {} | {} | {:.0} / {:.0} |",
+            r.budget_ms,
+            r.strategy,
+            100.0 * r.sap50,
+            100.0 * r.sap,
+            r.f1,
+            r.speedup_vs_static,
+            t.device_ms_per_frame,
+            t.skipped,
+            t.frames,
+            t.deadline_misses,
+            t.p50_latency_ms,
+            t.p95_latency_ms
+        );
+    }
+    let margins = budget_margins(scores);
+    if let Some(first) = margins.first() {
+        s.push_str("\nThe budget policy minus each strategy, sAP@0.5 points:\n\n| budget | best simple baseline |");
+        for (name, _) in &first.versus {
+            let _ = write!(s, " vs {name} |");
+        }
+        s.push_str("\n|---|---|");
+        s.push_str(&"---|".repeat(first.versus.len()));
+        s.push('\n');
+        for m in &margins {
+            let _ = write!(
+                s,
+                "| {} ms | {} ({:.1}) |",
+                m.budget_ms,
+                m.best_baseline,
+                100.0 * m.best_baseline_sap50
+            );
+            for (_, d) in &m.versus {
+                let _ = write!(s, " {:+.1} |", 100.0 * d);
+            }
+            s.push('\n');
+        }
+    }
+    s
+}
+
+/// The two figures: sAP@0.5 against the budget per strategy, and speed-up against F1
+/// per strategy (one point per budget).
+pub fn plot_budget(stem: &std::path::Path, scores: &[BudgetScore]) -> Result<()> {
+    let all: Vec<&BudgetScore> = scores.iter().filter(|r| r.scenario == "all").collect();
+    let series = |f: &dyn Fn(&BudgetScore) -> (f64, f64)| -> Vec<(String, Vec<(f64, f64)>)> {
+        BudgetStrategy::ALL
+            .iter()
+            .map(|s| {
+                let mut pts: Vec<(f64, f64)> = all
+                    .iter()
+                    .filter(|r| r.strategy == s.name())
+                    .map(|r| f(r))
+                    .collect();
+                pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+                (s.name().to_string(), pts)
+            })
+            .collect()
+    };
+    let dir = stem.parent().unwrap_or(std::path::Path::new("."));
+    let name = stem
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    crate::plot::plot_lines(
+        &dir.join(format!("{name}-sap")),
+        "streaming AP against the latency budget",
+        ("budget, device ms per frame", "sAP@0.5 (%)"),
+        &series(&|r| (r.budget_ms, 100.0 * r.sap50)),
+    )?;
+    crate::plot::plot_lines(
+        &dir.join(format!("{name}-speed-f1")),
+        "speed against accuracy, one point per budget",
+        ("speed-up vs static (device time per frame)", "F1 @ IoU 0.5"),
+        &series(&|r| (r.speedup_vs_static, r.f1)),
+    )
+}
