@@ -257,6 +257,45 @@ pub fn update(doc: &str, figures: &Figures) -> Result<String, Mismatch> {
     Ok(out)
 }
 
+/// `text` (a run's report) with its run-relative links pointed at the published copies
+/// (`files`: run path → published name); a link to anything not published becomes
+/// plain text naming the run file, so the published report has no dead link.
+pub fn relink(text: &str, files: &[(&str, &str)]) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some(close) = rest.find("](") {
+        let Some(end) = rest[close + 2..].find(')') else {
+            break;
+        };
+        let target = &rest[close + 2..close + 2 + end];
+        let open = rest[..close].rfind('[');
+        let external = target.contains("://") || target.starts_with('#');
+        match (open, external) {
+            (Some(open), false) => {
+                let image = open > 0 && rest.as_bytes()[open - 1] == b'!';
+                let start = if image { open - 1 } else { open };
+                out.push_str(&rest[..start]);
+                let label = &rest[open + 1..close];
+                match files.iter().find(|(from, _)| *from == target) {
+                    Some((_, name)) => {
+                        out.push_str(&rest[start..close + 2]);
+                        out.push_str(name);
+                        out.push(')');
+                    }
+                    None if image => {
+                        out.push_str(&format!("*{label}: `{target}` in the run folder*"))
+                    }
+                    None => out.push_str(&format!("{label} (`{target}` in the run folder)")),
+                }
+            }
+            _ => out.push_str(&rest[..close + 2 + end + 1]),
+        }
+        rest = &rest[close + 2 + end + 1..];
+    }
+    out.push_str(rest);
+    out
+}
+
 /// Options of `frugal figures`.
 #[derive(Args, Debug)]
 pub struct FiguresArgs {
@@ -354,13 +393,19 @@ pub fn run(args: FiguresArgs) -> anyhow::Result<()> {
             }
             std::fs::create_dir_all(&to).with_context(|| format!("{}", to.display()))?;
             frugal_data::dataset::write_json_atomic(&to.join("figures.json"), &figs)?;
-            for (from, name) in crate::run::published_files() {
+            let files = crate::run::published_files();
+            for (from, name) in files {
                 let src = run.join(from);
-                if src.exists() {
-                    let bytes =
-                        std::fs::read(&src).with_context(|| format!("{}", src.display()))?;
-                    frugal_data::dataset::write_atomic(&to.join(name), &bytes)?;
+                if !src.exists() {
+                    continue;
                 }
+                let mut bytes =
+                    std::fs::read(&src).with_context(|| format!("{}", src.display()))?;
+                if name.ends_with(".md") {
+                    let text = String::from_utf8_lossy(&bytes);
+                    bytes = relink(&text, files).into_bytes();
+                }
+                frugal_data::dataset::write_atomic(&to.join(name), &bytes)?;
             }
             for d in &docs {
                 let text =
@@ -407,6 +452,16 @@ mod tests {
         );
         let unknown = "[1](figures.json#nope)";
         assert_eq!(check(unknown, &figs())[0].expected, None);
+    }
+
+    #[test]
+    fn a_published_report_links_only_what_was_published() {
+        let files = [("pareto/pareto_map.png", "pareto_map.png")];
+        let md = "![front](pareto/pareto_map.png) and ![sheet](data/sheet.png), [cfg](config/run.json), [w](https://x.org/a)\n";
+        assert_eq!(
+            relink(md, &files),
+            "![front](pareto_map.png) and *sheet: `data/sheet.png` in the run folder*, cfg (`config/run.json` in the run folder), [w](https://x.org/a)\n"
+        );
     }
 
     #[test]
