@@ -452,9 +452,12 @@ fn lines_draw<DB: DrawingBackend>(
     join: bool,
 ) -> std::result::Result<(), String> {
     root.fill(&WHITE).map_err(s)?;
+    // the legend gets a column of its own, so that it hides no point
+    let (w, _) = root.dim_in_pixel();
+    let (plot, legend) = root.split_horizontally(w.saturating_sub(170));
     let (x0, x1) = range(series.iter().flat_map(|(_, p)| p.iter().map(|q| q.0)), 0.08);
     let (y0, y1) = range(series.iter().flat_map(|(_, p)| p.iter().map(|q| q.1)), 0.08);
-    let mut chart = ChartBuilder::on(root)
+    let mut chart = ChartBuilder::on(&plot)
         .caption(title, ("sans-serif", 22))
         .margin(12)
         .x_label_area_size(45)
@@ -469,23 +472,30 @@ fn lines_draw<DB: DrawingBackend>(
         .map_err(s)?;
     for (i, (name, pts)) in series.iter().enumerate() {
         let color = Palette99::pick(i).to_rgba();
-        let line = if join { pts.clone() } else { Vec::new() };
-        chart
-            .draw_series(LineSeries::new(line, color.stroke_width(2)))
-            .map_err(s)?
-            .label(name.clone())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color));
+        if join {
+            chart
+                .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+                .map_err(s)?;
+        }
         chart
             .draw_series(pts.iter().map(|&p| Circle::new(p, 5, color.filled())))
             .map_err(s)?;
+        let y = 60 + 26 * i as i32;
+        legend
+            .draw(&Circle::new((16, y), 5, color.filled()))
+            .map_err(s)?;
+        if join {
+            legend
+                .draw(&PathElement::new(
+                    vec![(4, y), (28, y)],
+                    color.stroke_width(2),
+                ))
+                .map_err(s)?;
+        }
+        legend
+            .draw(&Text::new(name.clone(), (36, y - 8), ("sans-serif", 16)))
+            .map_err(s)?;
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .border_style(BLACK)
-        .background_style(WHITE.mix(0.8))
-        .draw()
-        .map_err(s)?;
     Ok(())
 }
 
@@ -525,4 +535,33 @@ fn series_plot(
         &|r| lines_draw(r, title, axes, series, join),
         &|r| lines_draw(r, title, axes, series, join),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn line_and_point_plots_write_png_and_svg_with_every_series_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let series: Vec<(String, Vec<(f64, f64)>)> = ["static", "budget", "oracle"]
+            .iter()
+            .enumerate()
+            .map(|(i, n)| {
+                let pts = (0..3)
+                    .map(|k| (8.0 * (k + 1) as f64, 50.0 + (i * k) as f64))
+                    .collect();
+                (n.to_string(), pts)
+            })
+            .collect();
+        plot_lines(&dir.path().join("l"), "lines", ("x", "y"), &series).unwrap();
+        plot_points(&dir.path().join("p"), "points", ("x", "y"), &series).unwrap();
+        for stem in ["l", "p"] {
+            assert!(dir.path().join(format!("{stem}.png")).is_file());
+            let svg = std::fs::read_to_string(dir.path().join(format!("{stem}.svg"))).unwrap();
+            for (name, _) in &series {
+                assert!(svg.contains(name.as_str()), "{stem}.svg lacks {name}");
+            }
+        }
+    }
 }
