@@ -29,6 +29,18 @@ pub struct EpochRecord {
     pub lr: f64,
     /// Wall-clock seconds it took (training + validation).
     pub seconds: f64,
+    /// Of those: reading, decoding and augmenting the training frames.
+    #[serde(default)]
+    pub data_s: f64,
+    /// The forward passes and losses.
+    #[serde(default)]
+    pub forward_s: f64,
+    /// The backward passes and optimizer steps.
+    #[serde(default)]
+    pub backward_s: f64,
+    /// Scoring the validation frames.
+    #[serde(default)]
+    pub validation_s: f64,
 }
 
 fn plot_err(path: &Path, e: impl std::fmt::Display) -> ModelError {
@@ -107,11 +119,11 @@ fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, h: &[EpochRecord]) -> 
 /// Write `curves.csv`, `curves.png` and `curves.svg` into `dir` (temp file + rename).
 pub fn write(dir: &Path, history: &[EpochRecord]) -> Result<(), ModelError> {
     let mut csv = String::from(
-        "epoch,step,loss,rpn_objectness,rpn_box,roi_class,roi_box,val_map,lr,seconds\n",
+        "epoch,step,loss,rpn_objectness,rpn_box,roi_class,roi_box,val_map,lr,seconds,data_s,forward_s,backward_s,validation_s\n",
     );
     for r in history {
         csv.push_str(&format!(
-            "{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.3e},{:.1}\n",
+            "{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.3e},{:.1},{:.1},{:.1},{:.1},{:.1}\n",
             r.epoch,
             r.step,
             r.loss,
@@ -121,7 +133,11 @@ pub fn write(dir: &Path, history: &[EpochRecord]) -> Result<(), ModelError> {
             r.roi_box,
             r.val_map,
             r.lr,
-            r.seconds
+            r.seconds,
+            r.data_s,
+            r.forward_s,
+            r.backward_s,
+            r.validation_s
         ));
     }
     let p = dir.join("curves.csv");

@@ -448,6 +448,8 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
         order_rng.set_stream(epoch as u64);
         let order = epoch_order(&weights, &mut order_rng);
         let mut sums = [0.0f64; 5];
+        // seconds spent on data (read, decode, augment), forward, backward + step
+        let mut spent = [0.0f64; 3];
         let mut n_steps = 0usize;
         let mut lr = tc.lr;
         for batch in order.chunks(tc.batch_size) {
@@ -458,6 +460,7 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
             let mut parts = [0.0f64; 5];
             let mut total = Tensor::zeros([], (Kind::Float, opts.device));
             for &i in batch {
+                let tic = std::time::Instant::now();
                 let f = train_frames[i];
                 let rgb = ds
                     .load_rgb(f)
@@ -469,6 +472,8 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
                     &mut rng,
                 );
                 let x = normalise(&model, &augment(&x, &tc, &mut rng));
+                spent[0] += tic.elapsed().as_secs_f64();
+                let tic = std::time::Instant::now();
                 let l = image_losses(&model, &x, &truth, &tc, &mut rng);
                 for (p, t) in
                     parts
@@ -478,11 +483,14 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
                     *p += t.double_value(&[]) / batch.len() as f64;
                 }
                 total += l.total() / batch.len() as f64;
+                spent[1] += tic.elapsed().as_secs_f64();
             }
             parts[4] = parts[..4].iter().sum();
+            let tic = std::time::Instant::now();
             total.backward();
             lr = learning_rate(&tc, state.step as usize, total_steps);
             opt.step(lr);
+            spent[2] += tic.elapsed().as_secs_f64();
             state.step += 1;
             n_steps += 1;
             for (s, p) in sums.iter_mut().zip(parts) {
@@ -510,7 +518,9 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
                 );
             }
         }
+        let tic = std::time::Instant::now();
         let results = detect_frames(&model, &ds, &val_frames)?;
+        let validation_s = tic.elapsed().as_secs_f64();
         let val_map = evaluate(
             &results,
             config.model.num_classes,
@@ -531,6 +541,10 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
             val_map,
             lr,
             seconds: te.elapsed().as_secs_f64(),
+            data_s: spent[0],
+            forward_s: spent[1],
+            backward_s: spent[2],
+            validation_s,
         });
         state.epochs_done = epoch + 1;
         if val_map > state.best_map {
@@ -541,10 +555,15 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
         save_checkpoint(&paths.ckpt, &model, &opt, &state)?;
         curves::write(&opts.out, &state.history)?;
         bar.println(format!(
-            "epoch {} done: loss {:.4}, val mAP@0.5 {:.4}",
+            "epoch {} done: loss {:.4}, val mAP@0.5 {:.4}; {:.0} s: data {:.0}, forward {:.0}, backward + step {:.0}, validation {:.0}",
             epoch + 1,
             sums[4] / n,
-            val_map
+            val_map,
+            te.elapsed().as_secs_f64(),
+            spent[0],
+            spent[1],
+            spent[2],
+            validation_s
         ));
     }
     bar.finish_and_clear();
