@@ -105,6 +105,11 @@ pub fn frame_f1(
     min_px: f32,
 ) -> f64 {
     let (tp, fp, fneg) = frame_counts(log, video, f, v, iou, min_px);
+    f1_of_counts(tp, fp, fneg)
+}
+
+/// `2 tp / (2 tp + fp + fn)`, and 1 when there is nothing to find and nothing found.
+pub fn f1_of_counts(tp: usize, fp: usize, fneg: usize) -> f64 {
     if tp + fp + fneg == 0 {
         1.0
     } else {

@@ -186,37 +186,62 @@ pub struct Mismatch {
     pub expected: Option<String>,
 }
 
-/// Every `[text](<…>figures.json#key)` link of `doc`: (line, byte range of the text,
-/// key).
-fn quoted(doc: &str) -> Vec<(usize, std::ops::Range<usize>, String)> {
-    const MARK: &str = "figures.json#";
+/// A Markdown link `[label](target)` (or image `![label](target)`) of a document: byte
+/// offsets of its `[`, its `]` and its `)`.
+struct Link {
+    open: usize,
+    close: usize,
+    end: usize,
+}
+
+impl Link {
+    fn target<'a>(&self, doc: &'a str) -> &'a str {
+        &doc[self.close + 2..self.end]
+    }
+}
+
+/// Every link of `doc`, in order (a link does not span lines).
+fn links(doc: &str) -> Vec<Link> {
     let mut out = Vec::new();
     let mut offset = 0;
-    for (i, line) in doc.split_inclusive('\n').enumerate() {
+    for line in doc.split_inclusive('\n') {
         let mut from = 0;
         while let Some(p) = line[from..].find("](") {
             let close = from + p;
-            let Some(open) = line[..close].rfind('[') else {
-                from = close + 2;
-                continue;
-            };
-            let target_start = close + 2;
-            let Some(end) = line[target_start..].find(')') else {
+            let Some(end) = line[close + 2..].find(')').map(|e| close + 2 + e) else {
                 break;
             };
-            let target = &line[target_start..target_start + end];
-            if let Some(k) = target.find(MARK) {
-                out.push((
-                    i + 1,
-                    offset + open + 1..offset + close,
-                    target[k + MARK.len()..].to_string(),
-                ));
+            if let Some(open) = line[..close].rfind('[') {
+                out.push(Link {
+                    open: offset + open,
+                    close: offset + close,
+                    end: offset + end,
+                });
             }
-            from = target_start + end;
+            from = end;
         }
         offset += line.len();
     }
     out
+}
+
+/// Every `[text](<…>figures.json#key)` link of `doc`: (line, byte range of the text,
+/// key).
+fn quoted(doc: &str) -> Vec<(usize, std::ops::Range<usize>, String)> {
+    const MARK: &str = "figures.json#";
+    links(doc)
+        .into_iter()
+        .filter_map(|l| {
+            let target = l.target(doc);
+            let k = target.find(MARK)?;
+            let line = doc[..l.open].matches('\n').count() + 1;
+            Some((
+                line,
+                l.open + 1..l.close,
+                target[k + MARK.len()..].to_string(),
+            ))
+        })
+        .collect()
 }
 
 /// The quoted figures of `doc` that differ from `figures` (or name no figure).
@@ -262,37 +287,28 @@ pub fn update(doc: &str, figures: &Figures) -> Result<String, Mismatch> {
 /// plain text naming the run file, so the published report has no dead link.
 pub fn relink(text: &str, files: &[(&str, &str)]) -> String {
     let mut out = String::with_capacity(text.len());
-    let mut rest = text;
-    while let Some(close) = rest.find("](") {
-        let Some(end) = rest[close + 2..].find(')') else {
-            break;
-        };
-        let target = &rest[close + 2..close + 2 + end];
-        let open = rest[..close].rfind('[');
-        let external = target.contains("://") || target.starts_with('#');
-        match (open, external) {
-            (Some(open), false) => {
-                let image = open > 0 && rest.as_bytes()[open - 1] == b'!';
-                let start = if image { open - 1 } else { open };
-                out.push_str(&rest[..start]);
-                let label = &rest[open + 1..close];
-                match files.iter().find(|(from, _)| *from == target) {
-                    Some((_, name)) => {
-                        out.push_str(&rest[start..close + 2]);
-                        out.push_str(name);
-                        out.push(')');
-                    }
-                    None if image => {
-                        out.push_str(&format!("*{label}: `{target}` in the run folder*"))
-                    }
-                    None => out.push_str(&format!("{label} (`{target}` in the run folder)")),
-                }
-            }
-            _ => out.push_str(&rest[..close + 2 + end + 1]),
+    let mut last = 0;
+    for l in links(text) {
+        let target = l.target(text);
+        if target.contains("://") || target.starts_with('#') {
+            continue;
         }
-        rest = &rest[close + 2 + end + 1..];
+        let image = l.open > 0 && text.as_bytes()[l.open - 1] == b'!';
+        let start = if image { l.open - 1 } else { l.open };
+        out.push_str(&text[last..start]);
+        let label = &text[l.open + 1..l.close];
+        match files.iter().find(|(from, _)| *from == target) {
+            Some((_, name)) => {
+                out.push_str(&text[start..l.close + 2]);
+                out.push_str(name);
+                out.push(')');
+            }
+            None if image => out.push_str(&format!("*{label}: `{target}` in the run folder*")),
+            None => out.push_str(&format!("{label} (`{target}` in the run folder)")),
+        }
+        last = l.end + 1;
     }
-    out.push_str(rest);
+    out.push_str(&text[last..]);
     out
 }
 

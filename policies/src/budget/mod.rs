@@ -193,11 +193,7 @@ pub fn shown_f1(shown: &[Detection], truth: &[Truth], iou: f32) -> f64 {
         iou,
         f32::NEG_INFINITY,
     );
-    if tp + fp + fneg == 0 {
-        1.0
-    } else {
-        (2 * tp) as f64 / (2 * tp + fp + fneg) as f64
-    }
+    crate::scoring::f1_of_counts(tp, fp, fneg)
 }
 
 /// The largest box of a frame's output, as the runtime's scheduler takes it.
