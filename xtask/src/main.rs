@@ -65,7 +65,7 @@ const ORT_DIR: &str = "onnxruntime-1.31.1";
 const ORT_LIB: &str = "libonnxruntime.so.1.31.1";
 const BARE_METAL_TARGET: &str = "thumbv7em-none-eabihf";
 /// Debian packages: fontconfig and a TrueType font for plot labels.
-const APT_PACKAGES: &[&str] = &["libfontconfig1-dev", "fonts-dejavu-core"];
+const APT_PACKAGES: &[&str] = &["libfontconfig1-dev", "fonts-dejavu-core", "ffmpeg"];
 
 type Result<T> = std::result::Result<T, String>;
 
