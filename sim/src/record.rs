@@ -55,6 +55,8 @@ impl FootageRecorder {
             },
             split: Split::Val,
             frames: 0,
+            name: None,
+            fps: None,
         });
     }
 
@@ -96,6 +98,7 @@ impl FootageRecorder {
             index: video.frames,
             split: Split::Val,
             objects,
+            time_s: None,
         });
         video.frames += 1;
         Ok(())

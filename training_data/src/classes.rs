@@ -17,6 +17,33 @@ pub enum NavAction {
     Wait,
 }
 
+impl NavAction {
+    /// Every action.
+    pub const ALL: [NavAction; 4] = [
+        NavAction::TurnLeft,
+        NavAction::TurnRight,
+        NavAction::Stop,
+        NavAction::Wait,
+    ];
+
+    /// `turn_left`, `turn_right`, `stop` or `wait`.
+    pub fn name(self) -> &'static str {
+        match self {
+            NavAction::TurnLeft => "turn_left",
+            NavAction::TurnRight => "turn_right",
+            NavAction::Stop => "stop",
+            NavAction::Wait => "wait",
+        }
+    }
+
+    /// The action with this name (case-insensitive).
+    pub fn from_name(name: &str) -> Option<NavAction> {
+        NavAction::ALL
+            .into_iter()
+            .find(|a| a.name().eq_ignore_ascii_case(name.trim()))
+    }
+}
+
 /// One class of the dataset, as stored in the manifest.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -25,7 +52,8 @@ pub struct ClassInfo {
     pub id: ClassId,
     /// Short snake_case name, e.g. `turn_left`.
     pub name: String,
-    /// The road sign code it is modelled on, e.g. `D1a`.
+    /// The road sign code it is modelled on, e.g. `D1a` (empty for imported classes).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
     pub code: String,
     /// The navigation meaning, if the drone acts on this sign.
     pub action: Option<NavAction>,

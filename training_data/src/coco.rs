@@ -35,6 +35,10 @@ pub struct CocoImage {
     /// frugal extra: the frame index within the video.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub index: Option<u32>,
+    /// frugal extra: the frame's time in seconds from the start of its video (imported
+    /// video only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time: Option<f64>,
 }
 
 /// One COCO box annotation.
@@ -63,7 +67,7 @@ pub struct CocoCategory {
     pub id: u64,
     /// Name.
     pub name: String,
-    /// frugal writes `"sign"`.
+    /// frugal writes `"sign"` for the synthetic signs, `"object"` otherwise.
     #[serde(default)]
     pub supercategory: String,
     /// frugal extra: the road sign code.
@@ -103,8 +107,8 @@ impl CocoCategory {
         CocoCategory {
             id: u64::from(c.id) + 1,
             name: c.name.clone(),
-            supercategory: "sign".to_owned(),
-            code: Some(c.code.clone()),
+            supercategory: if c.code.is_empty() { "object" } else { "sign" }.to_owned(),
+            code: (!c.code.is_empty()).then(|| c.code.clone()),
         }
     }
 }
@@ -191,6 +195,7 @@ impl CocoFile {
                 index,
                 split,
                 objects: Vec::new(),
+                time_s: img.time,
             });
         }
         for ann in self.annotations {

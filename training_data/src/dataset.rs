@@ -103,7 +103,7 @@ impl Light {
 }
 
 /// One video's metadata.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct VideoMeta {
     /// Video id (unique in the dataset).
@@ -118,6 +118,26 @@ pub struct VideoMeta {
     pub split: Split,
     /// Number of frames.
     pub frames: u32,
+    /// The source video's name (imported sets; a time segment of a source video is
+    /// named `<name>#<first>-<last>` with its source frame indices).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Frame rate in frames per second, when the source says (imported video); the
+    /// synthetic videos and flight recordings run at 30.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fps: Option<f64>,
+}
+
+/// The frame rate of videos that do not state one (synthetic and flight videos).
+pub const DEFAULT_FPS: f64 = 30.0;
+
+impl VideoMeta {
+    /// The video's frame rate: its own, else [`DEFAULT_FPS`].
+    pub fn fps(&self) -> f64 {
+        self.fps
+            .filter(|f| f.is_finite() && *f > 0.0)
+            .unwrap_or(DEFAULT_FPS)
+    }
 }
 
 /// One annotated sign.
@@ -148,6 +168,10 @@ pub struct FrameRecord {
     pub split: Split,
     /// The signs in it.
     pub objects: Vec<Object>,
+    /// Its presentation time in seconds from the start of its video, when the source
+    /// gives real time (imported video); otherwise `index / fps` (see
+    /// [`Dataset::frame_time`]).
+    pub time_s: Option<f64>,
 }
 
 /// Where a dataset came from.
@@ -165,10 +189,13 @@ pub enum Source {
     },
     /// Made by an importer.
     Imported {
-        /// `coco`, `voc` or `gtsdb`.
+        /// `coco`, `voc`, `gtsdb`, `mot`, `cvat`, `coco-video` or `imagenet-vid`.
         format: String,
         /// The file or folder it was imported from, as given.
         from: String,
+        /// What the import skipped or changed.
+        #[serde(default, skip_serializing_if = "crate::import::ImportCounts::is_zero")]
+        counts: crate::import::ImportCounts,
     },
     /// Recorded from simulated maze flights (`frugal fly --record`): one video per
     /// flight, the renderer's exact boxes as annotations.
@@ -287,6 +314,15 @@ impl Dataset {
         self.videos.iter().find(|v| v.id == id)
     }
 
+    /// A frame's time in seconds from the start of its video: the recorded
+    /// presentation time, else its index over the video's frame rate.
+    pub fn frame_time(&self, frame: &FrameRecord) -> f64 {
+        frame.time_s.unwrap_or_else(|| {
+            let fps = self.video(frame.video).map_or(DEFAULT_FPS, VideoMeta::fps);
+            f64::from(frame.index) / fps
+        })
+    }
+
     /// The absolute path of a frame's image.
     pub fn frame_path(&self, frame: &FrameRecord) -> PathBuf {
         self.root.join(&frame.file)
@@ -363,6 +399,7 @@ impl Dataset {
                     height: f.height,
                     video: Some(f.video),
                     index: Some(f.index),
+                    time: f.time_s,
                 })
                 .collect(),
             annotations,

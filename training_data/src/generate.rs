@@ -59,6 +59,7 @@ fn render_video(
             index,
             split: plan.split,
             objects: f.objects,
+            time_s: None,
         });
         pb.inc(1);
     }
@@ -69,6 +70,8 @@ fn render_video(
         light: plan.light,
         split: plan.split,
         frames: plan.frames,
+        name: None,
+        fps: None,
     };
     Ok((meta, frames))
 }

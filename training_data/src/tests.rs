@@ -274,6 +274,7 @@ fn voc_import_then_coco_export_then_import_round_trips() {
     write_voc(ds, &voc);
     let mut opts = ImportOptions::new(Format::Voc, &voc);
     opts.images = Some(ds.root.clone());
+    opts.classes = ClassList::Signs;
     let first = import(&opts, &dir.path().join("first")).expect("import voc");
     assert_eq!(objects(&first), train_only(ds));
     assert_eq!(
@@ -299,6 +300,7 @@ fn gtsdb_import_with_class_map_then_coco_round_trips() {
     let mut opts = ImportOptions::new(Format::Gtsdb, &csv);
     opts.images = Some(ds.root.clone());
     opts.class_map = ClassMap::from_file(&map_path).expect("map");
+    opts.classes = ClassList::Signs;
     let first = import(&opts, &dir.path().join("first")).expect("import gtsdb");
     // GTSDB lists only images with signs.
     let mut expected = train_only(ds);
@@ -306,8 +308,10 @@ fn gtsdb_import_with_class_map_then_coco_round_trips() {
     assert_eq!(objects(&first), expected);
     reimport_via_coco(&first, dir.path());
 
-    // Without the map the numeric classes are unknown; with --drop-unmapped they go.
+    // Without the map, onto the ten signs, the numeric classes are unknown; with
+    // --drop-unmapped they go.
     opts.class_map = ClassMap::default();
+    opts.classes = ClassList::Signs;
     let err = import(&opts, &dir.path().join("x")).expect_err("unknown");
     let msg = err.to_string();
     assert!(
@@ -322,6 +326,8 @@ fn gtsdb_import_with_class_map_then_coco_round_trips() {
 fn import_err(format: Format, input: &Path, images: &Path) -> String {
     let mut opts = ImportOptions::new(format, input);
     opts.images = Some(images.to_owned());
+    opts.classes = ClassList::Signs;
+    opts.strict = true;
     let out = input.with_extension("out");
     let err = import(&opts, &out).expect_err("must fail").to_string();
     assert!(!out.exists(), "nothing is written on error");
@@ -336,7 +342,8 @@ fn malformed_inputs_name_the_file_and_the_record() {
     let d = dir.path();
     let frame = ds.frames[0].file.display().to_string();
 
-    // GTSDB: missing image, box outside, unknown class, bad number, wrong field count.
+    // GTSDB: missing image (strict), box outside, negative box, unknown class, bad
+    // number, wrong field count; a box reaching past the image is clipped instead.
     let cases = [
         (
             "missing.csv",
@@ -345,8 +352,13 @@ fn malformed_inputs_name_the_file_and_the_record() {
         ),
         (
             "outside.csv",
-            &*format!("{frame};1;1;5;5;stop\n{frame};180;90;200;100;stop\n"),
+            &*format!("{frame};1;1;5;5;stop\n{frame};500;90;520;100;stop\n"),
             vec!["outside.csv", "line 2", "outside"],
+        ),
+        (
+            "negative.csv",
+            &*format!("{frame};1;1;5;5;stop\n{frame};20;20;10;30;stop\n"),
+            vec!["negative.csv", "line 2", "negative"],
         ),
         (
             "unknown.csv",
@@ -451,11 +463,18 @@ fn a_failed_import_leaves_the_previous_dataset_untouched() {
     let out = dir.path().join("data");
     import(&ImportOptions::new(Format::Coco, &json), &out).expect("good import");
     let before = files(&out);
-    // Remove the last image: conversion fails after others were written.
+    // Cut the last image short: conversion fails after others were written.
     let last = ds.split(Split::Val).last().expect("val frame").file.clone();
-    std::fs::remove_file(dir.path().join("coco").join(&last)).expect("rm");
-    let err = import(&ImportOptions::new(Format::Coco, &json), &out).expect_err("missing image");
-    assert!(err.to_string().contains("not found"), "{err}");
+    let path = dir.path().join("coco").join(&last);
+    let bytes = std::fs::read(&path).expect("read");
+    // (the export hard-links frames: replace the file, never write through the link)
+    std::fs::remove_file(&path).expect("unlink");
+    std::fs::write(&path, &bytes[..bytes.len() / 2]).expect("truncate");
+    let err = import(&ImportOptions::new(Format::Coco, &json), &out).expect_err("corrupt image");
+    assert!(
+        err.to_string().contains(&last.display().to_string()),
+        "{err}"
+    );
     assert_eq!(files(&out), before);
     assert!(
         leftovers(dir.path()).is_empty(),
@@ -491,4 +510,121 @@ fn corrupt_own_annotations_are_reported_on_load() {
         msg.contains("manifest.json") && msg.contains("line 1"),
         "{msg}"
     );
+}
+
+#[test]
+fn missing_images_are_skipped_and_counted_unless_strict() {
+    let ds = tiny();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let json = export_coco(ds, Some(Split::Val), &dir.path().join("coco")).expect("export");
+    let listed = ds.split(Split::Val).count();
+    let first = ds.split(Split::Val).next().expect("val frame").file.clone();
+    std::fs::remove_file(dir.path().join("coco").join(&first)).expect("rm");
+    let out = dir.path().join("data");
+    let got = import(&ImportOptions::new(Format::Coco, &json), &out).expect("import");
+    assert_eq!(got.frames.len(), listed - 1);
+    let manifest = crate::dataset::read_manifest(&out).expect("manifest");
+    let Source::Imported { counts, .. } = manifest.source else {
+        panic!("not an import: {:?}", manifest.source);
+    };
+    assert_eq!(counts.missing_images, 1);
+
+    let mut strict = ImportOptions::new(Format::Coco, &json);
+    strict.strict = true;
+    let err = import(&strict, &dir.path().join("strict")).expect_err("strict");
+    assert!(
+        err.to_string().contains("not found") && err.to_string().contains("annotations.json"),
+        "{err}"
+    );
+    assert!(!dir.path().join("strict").exists());
+}
+
+#[test]
+fn a_source_class_list_is_kept_and_actions_attach_by_name() {
+    let ds = tiny();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let csv = dir.path().join("gt.txt");
+    write_gtsdb(ds, &csv);
+    // three user classes from the numeric GTSDB ids; the rest dropped
+    let map = ClassMap::from_pairs([("100", "left"), ("101", "right"), ("102", "halt")]);
+    let mut opts = ImportOptions::new(Format::Gtsdb, &csv);
+    opts.images = Some(ds.root.clone());
+    opts.class_map = map;
+    opts.drop_unmapped = true;
+    opts.actions = [("halt".to_owned(), NavAction::Stop)].into_iter().collect();
+    let got = import(&opts, &dir.path().join("three")).expect("import");
+    let mut names: Vec<&str> = got.classes.iter().map(|c| c.name.as_str()).collect();
+    names.sort_unstable();
+    assert_eq!(names, ["halt", "left", "right"]);
+    let halt = got.classes.iter().find(|c| c.name == "halt").expect("halt");
+    assert_eq!(halt.action, Some(NavAction::Stop));
+    assert!(
+        got.classes
+            .iter()
+            .filter(|c| c.name != "halt")
+            .all(|c| c.action.is_none())
+    );
+    let kept = |c: u16| {
+        [Sign::TurnLeft, Sign::TurnRight, Sign::Stop]
+            .iter()
+            .any(|s| s.id() == c)
+    };
+    let expected: usize = ds
+        .split(Split::Train)
+        .flat_map(|f| &f.objects)
+        .filter(|o| kept(o.class))
+        .count();
+    let objects: usize = got.frames.iter().map(|f| f.objects.len()).sum();
+    assert_eq!(objects, expected);
+    assert!(
+        got.frames
+            .iter()
+            .flat_map(|f| &f.objects)
+            .all(|o| o.class < 3)
+    );
+    // and the set loads back with its own classes
+    let again = Dataset::load(&got.root).expect("load");
+    assert_eq!(again.classes, got.classes);
+
+    // an action for a class the set does not have is an error naming it
+    opts.actions = [("pedestrian".to_owned(), NavAction::Wait)]
+        .into_iter()
+        .collect();
+    let err = import(&opts, &dir.path().join("bad")).expect_err("unknown action class");
+    assert!(err.to_string().contains("pedestrian"), "{err}");
+}
+
+#[test]
+fn a_box_reaching_past_the_image_is_clipped_and_counted() {
+    let ds = tiny();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let f = &ds.frames[0];
+    let csv = dir.path().join("gt.txt");
+    let (w, h) = (f.width as f32, f.height as f32);
+    let text = format!(
+        "{0};2;3;9;9;stop\n{0};{1};{2};{3};{4};stop\n",
+        f.file.display(),
+        w - 10.0,
+        h - 10.0,
+        w + 20.0,
+        h + 5.0
+    );
+    std::fs::write(&csv, text).expect("write");
+    let mut opts = ImportOptions::new(Format::Gtsdb, &csv);
+    opts.images = Some(ds.root.clone());
+    let got = import(&opts, &dir.path().join("out")).expect("import");
+    let boxes: Vec<BBox> = got.frames[0].objects.iter().map(|o| o.bbox).collect();
+    assert_eq!(
+        boxes,
+        [
+            BBox::new(2.0, 3.0, 10.0, 10.0),
+            BBox::new(w - 10.0, h - 10.0, w, h)
+        ]
+    );
+    let manifest = crate::dataset::read_manifest(&got.root).expect("manifest");
+    let Source::Imported { counts, .. } = manifest.source else {
+        panic!("not an import");
+    };
+    assert_eq!(counts.clipped_boxes, 1);
+    assert_eq!(got.classes.len(), 1, "the source's one class");
 }

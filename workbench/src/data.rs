@@ -105,13 +105,26 @@ struct ImportArgs {
     /// Folder the image paths are relative to (default: the annotation file's folder).
     #[arg(long)]
     images: Option<PathBuf>,
-    /// JSON or TOML map from source class (name or numeric id) to frugal class name or
-    /// code, e.g. {"14": "stop", "33": "turn_right"}.
+    /// JSON or TOML map from source class (name or numeric id) to the class it becomes,
+    /// e.g. {"14": "stop", "33": "turn_right", "person": "pedestrian"}.
     #[arg(long)]
     class_map: Option<PathBuf>,
-    /// Drop objects whose class is not mapped instead of failing.
+    /// With --class-map: keep only the mapped classes. With --classes other than
+    /// `source`: drop objects of other classes instead of failing.
     #[arg(long)]
     drop_unmapped: bool,
+    /// The dataset's classes: `source` (the source's own, any number and names),
+    /// `signs` (the ten synthetic signs, by name or road sign code), or a file with one
+    /// class name per line.
+    #[arg(long, default_value = "source")]
+    classes: String,
+    /// What the drone does on a class, CLASS=ACTION (turn_left, turn_right, stop, wait);
+    /// repeat for several, e.g. --action pedestrian=wait.
+    #[arg(long = "action", value_parser = frugal_data::parse_action)]
+    actions: Vec<(String, frugal_data::NavAction)>,
+    /// Images listed but missing are an error (default: skipped and counted).
+    #[arg(long)]
+    strict: bool,
     /// Put every image into this split (train, val or test).
     #[arg(long, value_parser = parse_split)]
     split: Option<Split>,
@@ -254,6 +267,9 @@ pub fn run(args: DataArgs) -> anyhow::Result<()> {
                 opts.class_map = ClassMap::from_file(map)?;
             }
             opts.drop_unmapped = a.drop_unmapped;
+            opts.classes = frugal_data::ClassList::parse(&a.classes)?;
+            opts.actions = a.actions.into_iter().collect();
+            opts.strict = a.strict;
             opts.split = a.split;
             opts.clutter = match a.clutter {
                 ClutterArg::Low => Clutter::Low,
@@ -270,6 +286,7 @@ pub fn run(args: DataArgs) -> anyhow::Result<()> {
                 ds.frames.len(),
                 a.out.display()
             );
+            print_counts(&a.out)?;
             print!("{}", frugal_data::summary(&ds));
             Ok(())
         }
@@ -365,4 +382,18 @@ pub fn parse_split(s: &str) -> Result<Split, String> {
         "test" => Ok(Split::Test),
         other => Err(format!("unknown split {other:?} (train, val or test)")),
     }
+}
+
+/// What an import skipped or changed, from the manifest it wrote.
+fn print_counts(out: &std::path::Path) -> anyhow::Result<()> {
+    if let frugal_data::Source::Imported { counts, .. } =
+        frugal_data::dataset::read_manifest(out)?.source
+        && !counts.is_zero()
+    {
+        println!(
+            "skipped {} missing images; clipped {} boxes to their image; {} boxes marked ignore",
+            counts.missing_images, counts.clipped_boxes, counts.ignored_boxes
+        );
+    }
+    Ok(())
 }

@@ -10,27 +10,34 @@
 //!   exclusive edge. No header (a first line starting with `file` / `filename` is
 //!   skipped).
 //!
-//! Classes: a source class (name, or numeric id as a string) is looked up in the class
-//! map first, then matched against frugal's class names and codes
-//! (case-insensitive). Anything else is an error naming the record, unless unmapped
-//! classes are dropped. Images without a `video` become one video each; splits come
-//! from the source (`split` extra), from the `split` option, or else from a fixed hash
-//! of the video id (≈70 % train, 15 % val, 15 % test), so splits never share a video.
+//! Classes: see [`classes`](mod@classes); by default the source's own. Images without
+//! a `video` become one video each; splits come from the source (`split` extra), from
+//! the `split` option, or else from a fixed hash of the video id (≈70 % train, 15 % val,
+//! 15 % test), so splits never share a video.
 //!
-//! One file for three still-image formats that share the split, class-mapping and
-//! writing code; each format moves to a module of its own when video annotation formats
-//! join them.
-use crate::coco::{CocoFile, check_box};
+//! Real-world quirks, handled as pycocotools and the MOT tools do: an image listed but
+//! missing is skipped and counted (an error with `strict`); a box reaching past the
+//! image is clipped to it and counted; a box of negative size, or wholly outside its
+//! image, is an error naming the record.
+//!
+//! This file holds the three still-image formats and what every import shares (splits,
+//! checks, writing); video annotation formats are in [`video`](mod@video).
+use crate::coco::CocoFile;
 use crate::dataset::PartialDir;
 use crate::generate::encode_png;
 use crate::{
-    BBox, ClassId, Clutter, DataError, Dataset, FrameRecord, Light, Object, Sign, Source, Split,
-    VideoMeta, classes,
+    BBox, ClassId, Clutter, DataError, Dataset, FrameRecord, Light, NavAction, Object, Source,
+    Split, VideoMeta,
 };
+use classes::ClassTable;
 use rayon::prelude::*;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+
+pub mod classes;
+
+pub use classes::{ClassList, ClassMap, parse_action};
 
 /// A source annotation format.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -55,56 +62,6 @@ impl Format {
     }
 }
 
-/// A map from source class (name or numeric id, as a string) to a frugal class.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct ClassMap {
-    map: BTreeMap<String, ClassId>,
-}
-
-impl ClassMap {
-    /// Read a JSON (or `.toml`) object `{"source class": "frugal class name or code"}`.
-    pub fn from_file(path: &Path) -> Result<Self, DataError> {
-        let text = std::fs::read_to_string(path).map_err(|e| DataError::io(path, e))?;
-        let raw: BTreeMap<String, String> = if path.extension().is_some_and(|e| e == "toml") {
-            toml::from_str(&text).map_err(|e| DataError::Config {
-                path: path.to_owned(),
-                message: e.to_string(),
-            })?
-        } else {
-            serde_json::from_str(&text).map_err(|e| DataError::json(path, e))?
-        };
-        let mut map = BTreeMap::new();
-        for (k, v) in raw {
-            let sign = Sign::from_name(&v).ok_or_else(|| DataError::UnknownClass {
-                path: path.to_owned(),
-                record: format!("key {k:?}"),
-                class: v.clone(),
-            })?;
-            map.insert(k, sign.id());
-        }
-        Ok(Self { map })
-    }
-
-    /// A map from pairs.
-    pub fn from_pairs<'a>(pairs: impl IntoIterator<Item = (&'a str, Sign)>) -> Self {
-        Self {
-            map: pairs
-                .into_iter()
-                .map(|(k, s)| (k.to_owned(), s.id()))
-                .collect(),
-        }
-    }
-
-    /// Resolve a source class: the map (by name, then by id), then frugal's own names.
-    pub fn resolve(&self, name: &str, id: Option<u64>) -> Option<ClassId> {
-        self.map
-            .get(name)
-            .or_else(|| id.and_then(|i| self.map.get(&i.to_string())))
-            .copied()
-            .or_else(|| Sign::from_name(name).map(Sign::id))
-    }
-}
-
 /// How to import.
 #[derive(Clone, Debug)]
 pub struct ImportOptions {
@@ -115,10 +72,17 @@ pub struct ImportOptions {
     /// Folder that image paths are relative to (default: the annotation file's folder,
     /// or the VOC folder).
     pub images: Option<PathBuf>,
-    /// Source-class mapping.
+    /// Source-class mapping (renames and merges).
     pub class_map: ClassMap,
-    /// Drop objects of unmapped classes instead of failing.
+    /// With a class map: keep only the mapped classes. With a class list other than
+    /// the source's: drop objects of classes outside it instead of failing.
     pub drop_unmapped: bool,
+    /// The class list the dataset gets.
+    pub classes: ClassList,
+    /// What the drone does on a class: class name → action.
+    pub actions: BTreeMap<String, NavAction>,
+    /// Images listed but missing are an error instead of skipped.
+    pub strict: bool,
     /// Put everything into this split (default: from the source, else by video hash).
     pub split: Option<Split>,
     /// Scenario levels recorded for the imported videos.
@@ -128,8 +92,8 @@ pub struct ImportOptions {
 }
 
 impl ImportOptions {
-    /// Options with defaults: no class map, unmapped classes are errors, automatic
-    /// splits, scenario medium / normal.
+    /// Options with defaults: the source's classes, no class map, no actions, missing
+    /// images skipped, automatic splits, scenario medium / normal.
     pub fn new(format: Format, input: impl Into<PathBuf>) -> Self {
         Self {
             format,
@@ -137,6 +101,9 @@ impl ImportOptions {
             images: None,
             class_map: ClassMap::default(),
             drop_unmapped: false,
+            classes: ClassList::Source,
+            actions: BTreeMap::new(),
+            strict: false,
             split: None,
             clutter: Clutter::Medium,
             light: Light::Normal,
@@ -163,29 +130,15 @@ struct SourceImage {
     objects: Vec<(String, ClassId, BBox)>,
 }
 
-fn resolve_class(
-    opts: &ImportOptions,
-    path: &Path,
-    record: &str,
-    name: &str,
-    id: Option<u64>,
-) -> Result<Option<ClassId>, DataError> {
-    match opts.class_map.resolve(name, id) {
-        Some(c) => Ok(Some(c)),
-        None if opts.drop_unmapped => Ok(None),
-        None => Err(DataError::UnknownClass {
-            path: path.to_owned(),
-            record: record.to_owned(),
-            class: name.to_owned(),
-        }),
-    }
-}
-
 fn parse_split(s: &str) -> Option<Split> {
     Split::ALL.into_iter().find(|x| x.name() == s)
 }
 
-fn read_coco(opts: &ImportOptions, root: &Path) -> Result<Vec<SourceImage>, DataError> {
+fn read_coco(
+    opts: &ImportOptions,
+    root: &Path,
+    table: &mut ClassTable,
+) -> Result<Vec<SourceImage>, DataError> {
     let path = &opts.input;
     let text = std::fs::read_to_string(path).map_err(|e| DataError::io(path, e))?;
     // Parse twice: the typed form, and the raw images for the optional `split` extra.
@@ -204,11 +157,22 @@ fn read_coco(opts: &ImportOptions, root: &Path) -> Result<Vec<SourceImage>, Data
         images: Vec<SplitOnly>,
     }
     let extra: Images = serde_json::from_str(&text).map_err(|e| DataError::json(path, e))?;
-    let cats: BTreeMap<u64, String> = coco
-        .categories
-        .iter()
-        .map(|c| (c.id, c.name.clone()))
-        .collect();
+    // Categories in id order (id 0 is as valid as any), so the class list follows the
+    // source's declaration; a dropped category maps to `None`.
+    let mut cats: BTreeMap<u64, (String, Option<ClassId>)> = BTreeMap::new();
+    let mut sorted: Vec<_> = coco.categories.iter().collect();
+    sorted.sort_by_key(|c| c.id);
+    for c in sorted {
+        let record = format!("category id {}", c.id);
+        if cats.contains_key(&c.id) {
+            return Err(DataError::invalid(path, record, "duplicate category id"));
+        }
+        let class = table.resolve(path, &record, &c.name, Some(c.id))?;
+        if let (Some(id), Some(code)) = (class, &c.code) {
+            table.note_code(id, code);
+        }
+        cats.insert(c.id, (c.name.clone(), class));
+    }
     let mut index_of = BTreeMap::new();
     let mut out = Vec::new();
     for (img, ex) in coco.images.into_iter().zip(extra.images) {
@@ -247,14 +211,14 @@ fn read_coco(opts: &ImportOptions, root: &Path) -> Result<Vec<SourceImage>, Data
                     format!("image id {} does not exist", ann.image_id),
                 )
             })?;
-        let name = cats
+        let (_, class) = cats
             .get(&ann.category_id)
             .ok_or_else(|| DataError::UnknownClass {
                 path: path.clone(),
                 record: record.clone(),
                 class: format!("category id {}", ann.category_id),
             })?;
-        if let Some(class) = resolve_class(opts, path, &record, name, Some(ann.category_id))? {
+        if let Some(class) = *class {
             slot.objects.push((record, class, ann.to_bbox()));
         }
     }
@@ -289,7 +253,11 @@ struct VocBox {
     ymax: f32,
 }
 
-fn read_voc(opts: &ImportOptions, root: &Path) -> Result<Vec<SourceImage>, DataError> {
+fn read_voc(
+    opts: &ImportOptions,
+    root: &Path,
+    table: &mut ClassTable,
+) -> Result<Vec<SourceImage>, DataError> {
     let input = &opts.input;
     let files: Vec<PathBuf> = if input.is_dir() {
         let mut v: Vec<PathBuf> = std::fs::read_dir(input)
@@ -312,7 +280,7 @@ fn read_voc(opts: &ImportOptions, root: &Path) -> Result<Vec<SourceImage>, DataE
         let mut objects = Vec::new();
         for (i, o) in ann.objects.iter().enumerate() {
             let record = format!("object {} ({})", i + 1, o.name);
-            if let Some(class) = resolve_class(opts, &file, &record, &o.name, None)? {
+            if let Some(class) = table.resolve(&file, &record, &o.name, None)? {
                 let b = &o.bndbox;
                 objects.push((
                     record,
@@ -337,7 +305,11 @@ fn read_voc(opts: &ImportOptions, root: &Path) -> Result<Vec<SourceImage>, DataE
     Ok(out)
 }
 
-fn read_gtsdb(opts: &ImportOptions, root: &Path) -> Result<Vec<SourceImage>, DataError> {
+fn read_gtsdb(
+    opts: &ImportOptions,
+    root: &Path,
+    table: &mut ClassTable,
+) -> Result<Vec<SourceImage>, DataError> {
     let path = &opts.input;
     let text = std::fs::read(path).map_err(|e| DataError::io(path, e))?;
     // Physical line of a byte offset (the csv crate does not count skipped blank lines).
@@ -407,9 +379,7 @@ fn read_gtsdb(opts: &ImportOptions, root: &Path) -> Result<Vec<SourceImage>, Dat
             });
             out.len() - 1
         });
-        if let Some(class) =
-            resolve_class(opts, path, &record, class_name, class_name.parse().ok())?
-        {
+        if let Some(class) = table.resolve(path, &record, class_name, class_name.parse().ok())? {
             let bbox = BBox::new(coords[0], coords[1], coords[2] + 1.0, coords[3] + 1.0);
             out[slot].objects.push((record, class, bbox));
         }
@@ -427,6 +397,101 @@ pub fn hashed_split(video: u32) -> Split {
     }
 }
 
+/// What an import skipped or changed, recorded in the manifest.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ImportCounts {
+    /// Images (or frames) the annotations list but the source lacks, skipped.
+    pub missing_images: u64,
+    /// Boxes reaching past their image, clipped to it.
+    pub clipped_boxes: u64,
+    /// Boxes marked ignore (crowd, distractor, too little visible), not kept as objects.
+    pub ignored_boxes: u64,
+}
+
+impl ImportCounts {
+    /// Whether nothing was skipped or changed.
+    pub fn is_zero(&self) -> bool {
+        *self == ImportCounts::default()
+    }
+}
+
+/// A source box placed in a `width × height` image: a negative size or a box wholly
+/// outside is an error naming the record; a box reaching past the image is clipped and
+/// counted.
+pub(crate) fn place_box(
+    path: &Path,
+    record: &str,
+    bbox: BBox,
+    width: u32,
+    height: u32,
+    counts: &mut ImportCounts,
+) -> Result<BBox, DataError> {
+    let finite = [bbox.x1, bbox.y1, bbox.x2, bbox.y2]
+        .iter()
+        .all(|v| v.is_finite());
+    if !finite || bbox.x2 < bbox.x1 || bbox.y2 < bbox.y1 {
+        return Err(DataError::invalid(
+            path,
+            record,
+            format!(
+                "negative or undefined box size: [{}, {}, {}, {}] (x1, y1, x2, y2)",
+                bbox.x1, bbox.y1, bbox.x2, bbox.y2
+            ),
+        ));
+    }
+    let clipped = bbox.clip(width as f32, height as f32);
+    if !clipped.is_valid() {
+        return Err(DataError::BoxOutside {
+            path: path.to_owned(),
+            record: record.to_owned(),
+            x1: bbox.x1,
+            y1: bbox.y1,
+            x2: bbox.x2,
+            y2: bbox.y2,
+            width,
+            height,
+        });
+    }
+    if clipped != bbox {
+        counts.clipped_boxes += 1;
+    }
+    Ok(clipped)
+}
+
+/// The videos of a set of frames (in id order), checking that a video lies in one split
+/// and no (video, index) pair repeats; `meta` gives each new video's metadata.
+pub(crate) fn collect_videos(
+    frames: &[FrameRecord],
+    input: &Path,
+    mut meta: impl FnMut(&FrameRecord) -> VideoMeta,
+) -> Result<Vec<VideoMeta>, DataError> {
+    let mut videos: BTreeMap<u32, VideoMeta> = BTreeMap::new();
+    let mut seen = std::collections::BTreeSet::new();
+    for f in frames {
+        let v = videos.entry(f.video).or_insert_with(|| VideoMeta {
+            frames: 0,
+            ..meta(f)
+        });
+        if v.split != f.split {
+            return Err(DataError::invalid(
+                input,
+                format!("video {}", f.video),
+                format!("has frames in both {} and {}", v.split, f.split),
+            ));
+        }
+        v.frames += 1;
+        if !seen.insert((f.video, f.index)) {
+            return Err(DataError::invalid(
+                input,
+                format!("image {}", f.file.display()),
+                format!("video {} frame {} appears twice", f.video, f.index),
+            ));
+        }
+    }
+    Ok(videos.into_values().collect())
+}
+
 /// Import a dataset into `out` (written to `<out>.partial-XXXX`, then swapped in).
 /// Images are decoded, checked against their annotations and stored as PNG frames.
 pub fn import(opts: &ImportOptions, out: &Path) -> Result<Dataset, DataError> {
@@ -435,15 +500,34 @@ pub fn import(opts: &ImportOptions, out: &Path) -> Result<Dataset, DataError> {
         None if opts.format == Format::Voc && opts.input.is_dir() => opts.input.clone(),
         None => opts.input.parent().map(Path::to_owned).unwrap_or_default(),
     };
-    let sources = match opts.format {
-        Format::Coco => read_coco(opts, &root)?,
-        Format::Voc => read_voc(opts, &root)?,
-        Format::Gtsdb => read_gtsdb(opts, &root)?,
+    let mut table = ClassTable::new(&opts.classes, &opts.class_map, opts.drop_unmapped);
+    let mut sources = match opts.format {
+        Format::Coco => read_coco(opts, &root, &mut table)?,
+        Format::Voc => read_voc(opts, &root, &mut table)?,
+        Format::Gtsdb => read_gtsdb(opts, &root, &mut table)?,
     };
+    let classes = table.finish(&opts.actions, &opts.input)?;
+    let mut counts = ImportCounts::default();
+    let listed = sources.len();
+    if let Some(missing) = sources.iter().find(|s| !s.image.is_file()) {
+        if opts.strict {
+            return Err(DataError::MissingImage {
+                path: missing.ann_file.clone(),
+                record: missing.record.clone(),
+                image: missing.image.clone(),
+            });
+        }
+        sources.retain(|s| s.image.is_file());
+        counts.missing_images = (listed - sources.len()) as u64;
+    }
     if sources.is_empty() {
         return Err(DataError::Empty {
             path: opts.input.clone(),
-            reason: "no images".into(),
+            reason: if listed == 0 {
+                "no images".into()
+            } else {
+                format!("none of the {listed} images it lists exists")
+            },
         });
     }
 
@@ -472,7 +556,7 @@ pub fn import(opts: &ImportOptions, out: &Path) -> Result<Dataset, DataError> {
 
     let partial = PartialDir::new(out)?;
     let dir = partial.path().to_owned();
-    let converted: Vec<Result<FrameRecord, DataError>> = sources
+    let converted: Vec<Result<(FrameRecord, ImportCounts), DataError>> = sources
         .par_iter()
         .zip(plan.par_iter())
         .enumerate()
@@ -482,42 +566,32 @@ pub fn import(opts: &ImportOptions, out: &Path) -> Result<Dataset, DataError> {
         .collect();
     let mut frames = Vec::with_capacity(converted.len());
     for f in converted {
-        frames.push(f?);
+        let (frame, c) = f?;
+        counts.clipped_boxes += c.clipped_boxes;
+        frames.push(frame);
     }
-    let mut videos: BTreeMap<u32, VideoMeta> = BTreeMap::new();
-    for (f, s) in frames.iter().zip(&sources) {
-        let (clutter, light) = s.scenario.unwrap_or((opts.clutter, opts.light));
-        let v = videos.entry(f.video).or_insert(VideoMeta {
+    let scenario: BTreeMap<u32, (Clutter, Light)> = frames
+        .iter()
+        .zip(&sources)
+        .map(|(f, s)| (f.video, s.scenario.unwrap_or((opts.clutter, opts.light))))
+        .collect();
+    let videos = collect_videos(&frames, &opts.input, |f| {
+        let (clutter, light) = scenario[&f.video];
+        VideoMeta {
             id: f.video,
             seed: 0,
             clutter,
             light,
             split: f.split,
             frames: 0,
-        });
-        if v.split != f.split {
-            return Err(DataError::invalid(
-                &opts.input,
-                format!("video {}", f.video),
-                format!("has frames in both {} and {}", v.split, f.split),
-            ));
+            name: None,
+            fps: None,
         }
-        v.frames += 1;
-    }
-    let mut seen = std::collections::BTreeSet::new();
-    for f in &frames {
-        if !seen.insert((f.video, f.index)) {
-            return Err(DataError::invalid(
-                &opts.input,
-                format!("image {}", f.file.display()),
-                format!("video {} frame {} appears twice", f.video, f.index),
-            ));
-        }
-    }
+    })?;
     let mut dataset = Dataset {
         root: dir.clone(),
-        classes: classes(),
-        videos: videos.into_values().collect(),
+        classes,
+        videos,
         frames,
     };
     dataset.write_metadata(
@@ -525,6 +599,7 @@ pub fn import(opts: &ImportOptions, out: &Path) -> Result<Dataset, DataError> {
         Source::Imported {
             format: opts.format.name().to_owned(),
             from: opts.input.display().to_string(),
+            counts,
         },
     )?;
     partial.commit()?;
@@ -539,14 +614,7 @@ fn convert(
     video: u32,
     index: u32,
     split: Split,
-) -> Result<FrameRecord, DataError> {
-    if !s.image.is_file() {
-        return Err(DataError::MissingImage {
-            path: s.ann_file.clone(),
-            record: s.record.clone(),
-            image: s.image.clone(),
-        });
-    }
+) -> Result<(FrameRecord, ImportCounts), DataError> {
     let img = image::open(&s.image)
         .map_err(|e| DataError::image(&s.image, e))?
         .to_rgb8();
@@ -560,12 +628,12 @@ fn convert(
             format!("declares {dw}x{dh} but {} is {w}x{h}", s.image.display()),
         ));
     }
+    let mut counts = ImportCounts::default();
     let mut objects = Vec::with_capacity(s.objects.len());
     for (record, class, bbox) in &s.objects {
-        check_box(&s.ann_file, record, *bbox, w, h)?;
         objects.push(Object {
             class: *class,
-            bbox: *bbox,
+            bbox: place_box(&s.ann_file, record, *bbox, w, h, &mut counts)?,
         });
     }
     let file = crate::generate::frame_file(video, index);
@@ -574,7 +642,7 @@ fn convert(
         std::fs::create_dir_all(parent).map_err(|e| DataError::io(parent, e))?;
     }
     std::fs::write(&path, encode_png(&img, &path)?).map_err(|e| DataError::io(&path, e))?;
-    Ok(FrameRecord {
+    let frame = FrameRecord {
         id,
         file,
         width: w,
@@ -583,7 +651,9 @@ fn convert(
         index,
         split,
         objects,
-    })
+        time_s: None,
+    };
+    Ok((frame, counts))
 }
 
 /// Export `ds` (all splits, or one) as a self-contained COCO folder: `out/annotations.json`
