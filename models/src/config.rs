@@ -21,8 +21,16 @@ pub struct BlockConfig {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ModelConfig {
-    /// Number of object classes (background excluded).
+    /// Number of object classes (background excluded). Training sets it to the
+    /// dataset's class count: the classes are the data's, not the model's.
     pub num_classes: usize,
+    /// The input size `[width, height]` the detector runs at: every frame is resized to
+    /// it (bilinear; the aspect ratio follows the size given) and boxes map back to the
+    /// frame's own pixels, so evaluation reports in source pixels. Unset: the training
+    /// frames' size, scaled down to at most [`DEFAULT_MAX_SIDE`] pixels on the longer
+    /// side (training records the value it used).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub input_size: Option<[usize; 2]>,
     /// Backbone blocks, input to output; the feature stride is the product of strides.
     pub backbone: Vec<BlockConfig>,
     /// Channels of the RPN's shared 3×3 conv.
@@ -70,6 +78,7 @@ impl Default for ModelConfig {
         };
         Self {
             num_classes: 10,
+            input_size: None,
             // stride 8: signs are 12-100 px, and a 30 px sign must span a few cells
             // for the RoI head to tell arrows and digits apart
             backbone: vec![block(32, 2), block(64, 2), block(128, 2), block(256, 1)],
@@ -94,7 +103,26 @@ impl Default for ModelConfig {
     }
 }
 
+/// The longer side of the default input size: frames larger than this are scaled down.
+pub const DEFAULT_MAX_SIDE: usize = 640;
+
 impl ModelConfig {
+    /// The input size `(height, width)` for frames of `width × height`: the configured
+    /// one, else the frame's scaled down to at most [`DEFAULT_MAX_SIDE`] on its longer
+    /// side.
+    pub fn input_for(&self, width: usize, height: usize) -> (usize, usize) {
+        if let Some([w, h]) = self.input_size {
+            return (h, w);
+        }
+        let long = width.max(height);
+        if long <= DEFAULT_MAX_SIDE || long == 0 {
+            return (height, width);
+        }
+        let scale = DEFAULT_MAX_SIDE as f64 / long as f64;
+        let side = |v: usize| ((v as f64 * scale).round() as usize).max(1);
+        (side(height), side(width))
+    }
+
     /// The backbone's total stride (feature-map cell size in pixels).
     pub fn stride(&self) -> i64 {
         self.backbone.iter().map(|b| b.stride).product()
@@ -120,6 +148,13 @@ impl ModelConfig {
         };
         if self.num_classes == 0 {
             return bad("num_classes must be at least 1".into());
+        }
+        if let Some([w, h]) = self.input_size
+            && (w < 16 || h < 16 || w > 8192 || h > 8192)
+        {
+            return bad(format!(
+                "input_size [{w}, {h}]: each side must be 16..=8192"
+            ));
         }
         if self.backbone.is_empty() {
             return bad("backbone needs at least one block".into());

@@ -331,6 +331,20 @@ impl FasterRcnn {
     /// Detect signs in one frame: detections sorted by score, highest first. The score
     /// is the softmax probability of the class, in `[0, 1]`.
     pub fn detect(&self, frame: FrameRef<'_>) -> Vec<Detection> {
+        // a frame of another size than the model's input is resized to it (as the ONNX
+        // executor does) and the boxes mapped back to the frame's pixels
+        if let Some([w, h]) = self.config.input_size
+            && (frame.width as usize, frame.height as usize) != (w, h)
+        {
+            let (w, h) = (w as u32, h as u32);
+            let small = frugal_runtime::cnn::resize_bilinear(frame, w, h);
+            let Some(resized) = FrameRef::new(w, h, &small) else {
+                return Vec::new();
+            };
+            let mut dets = self.detect(resized);
+            frugal_runtime::cnn::rescale_detections(&mut dets, (w, h), (frame.width, frame.height));
+            return dets;
+        }
         tch::no_grad(|| {
             let (h, w) = (frame.height as usize, frame.width as usize);
             let out = self.backbone_rpn(&self.frame_tensor(frame));

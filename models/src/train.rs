@@ -18,7 +18,7 @@
 //!
 //! Over 600 lines only with its unit tests (the last 70).
 use crate::config::{Config, TrainConfig};
-use crate::frames::scenario;
+use crate::frames::{input_frame, scenario};
 use crate::loss::image_losses;
 use crate::metrics::{Interpolation, Truth, evaluate};
 use crate::optim::{Optimizer, learning_rate};
@@ -132,15 +132,21 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ModelError> {
     std::fs::rename(&tmp, path).map_err(|e| ModelError::io(path, e))
 }
 
-/// An image as a `[1, 3, H, W]` float tensor in `[0, 1]`.
-fn image_tensor(rgb: &image::RgbImage) -> Tensor {
-    let (w, h) = (rgb.width() as i64, rgb.height() as i64);
-    Tensor::from_slice(rgb.as_raw())
-        .reshape([h, w, 3])
-        .permute([2, 0, 1])
-        .unsqueeze(0)
-        .to_kind(Kind::Float)
-        / 255.0
+/// The config as training uses it on `ds`: the dataset's class count, and the input size
+/// fixed (the configured one, else from the first training frame's size).
+fn adopt_data(config: &Config, ds: &Dataset, data: &Path) -> Result<Config, ModelError> {
+    let mut c = config.clone();
+    c.model.num_classes = ds.classes.len();
+    if c.model.input_size.is_none() {
+        let first = ds.split(Split::Train).next().ok_or_else(|| {
+            ModelError::Data(format!("{}: the train split is empty", data.display()))
+        })?;
+        let (h, w) = c
+            .model
+            .input_for(first.width as usize, first.height as usize);
+        c.model.input_size = Some([w, h]);
+    }
+    Ok(c)
 }
 
 /// Photometric augmentation of a `[1, 3, H, W]` image in `[0, 1]`: brightness, an
@@ -345,33 +351,35 @@ fn load_checkpoint(
 pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
     let t0 = std::time::Instant::now();
     let paths = Paths::new(&opts.out);
+    let ds = Dataset::load(&opts.data).map_err(|e| ModelError::Data(e.to_string()))?;
+    let given = adopt_data(&opts.config, &ds, &opts.data)?;
     let config = if opts.resume {
         let saved = Config::load(&paths.config)?;
         // only `train.epochs` may change on resume (to extend a finished run; the
         // learning-rate schedule is then recomputed over the new total)
-        let mut same = opts.config.clone();
+        let mut same = given.clone();
         same.train.epochs = saved.train.epochs;
-        if same != saved || opts.config.train.epochs < saved.train.epochs {
+        if same != saved || given.train.epochs < saved.train.epochs {
             return Err(ModelError::Config {
                 file: paths.config.display().to_string(),
                 msg: "the given config differs from the one this run was started with (omit --config to resume; only a larger train.epochs may change)".into(),
             });
         }
-        if opts.config.train.epochs != saved.train.epochs {
-            let json = serde_json::to_vec_pretty(&opts.config)
-                .map_err(|e| ModelError::Data(e.to_string()))?;
+        if given.train.epochs != saved.train.epochs {
+            let json =
+                serde_json::to_vec_pretty(&given).map_err(|e| ModelError::Data(e.to_string()))?;
             write_atomic(&paths.config, &json)?;
         }
-        opts.config.clone()
+        given.clone()
     } else {
-        opts.config.clone()
+        given.clone()
     };
     config.validate("config")?;
     let tc = config.train.clone();
     if tc.threads > 0 {
         tch::set_num_threads(tc.threads as i32);
     }
-    let ds = Dataset::load(&opts.data).map_err(|e| ModelError::Data(e.to_string()))?;
+    let input = config.model.input_for(0, 0);
     let train_frames: Vec<&FrameRecord> = spread(ds.split(Split::Train).collect(), tc.train_frames);
     if train_frames.is_empty() {
         return Err(ModelError::Data(format!(
@@ -462,15 +470,9 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
             for &i in batch {
                 let tic = std::time::Instant::now();
                 let f = train_frames[i];
-                let rgb = ds
-                    .load_rgb(f)
-                    .map_err(|e| ModelError::Data(e.to_string()))?;
-                let (x, truth) = augment_geometry(
-                    &image_tensor(&rgb).to_device(opts.device),
-                    &frame_truth(f),
-                    &tc,
-                    &mut rng,
-                );
+                let (img, truth) = input_frame(&ds, f, input)?;
+                let (x, truth) =
+                    augment_geometry(&img.to_device(opts.device), &truth, &tc, &mut rng);
                 let x = normalise(&model, &augment(&x, &tc, &mut rng));
                 spent[0] += tic.elapsed().as_secs_f64();
                 let tic = std::time::Instant::now();

@@ -180,6 +180,25 @@ pub fn resize_bilinear(frame: FrameRef<'_>, w: u32, h: u32) -> Vec<u8> {
     out
 }
 
+/// Detections found on a `from = (width, height)` resized copy of a frame, mapped back
+/// to the frame's own `to = (width, height)` pixels (clamped to the frame).
+pub fn rescale_detections(dets: &mut [Detection], from: (u32, u32), to: (u32, u32)) {
+    let (sx, sy) = (
+        to.0 as f32 / from.0.max(1) as f32,
+        to.1 as f32 / from.1.max(1) as f32,
+    );
+    let (fw, fh) = (to.0 as f32, to.1 as f32);
+    for d in dets {
+        let b = d.bbox;
+        d.bbox = BBox::new(
+            (b.x1 * sx).clamp(0.0, fw),
+            (b.y1 * sy).clamp(0.0, fh),
+            (b.x2 * sx).clamp(0.0, fw),
+            (b.y2 * sy).clamp(0.0, fh),
+        );
+    }
+}
+
 /// Parameters of [`proposals`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ProposalParams {

@@ -482,20 +482,7 @@ impl OrtDetector {
             })?;
             let (mut dets, mut times) = self.detect_timed(resized)?;
             times.preprocess_ms += resize_ms;
-            let (sx, sy) = (
-                frame.width as f32 / w as f32,
-                frame.height as f32 / h as f32,
-            );
-            let (fw, fh) = (frame.width as f32, frame.height as f32);
-            for d in &mut dets {
-                let b = d.bbox;
-                d.bbox = BBox::new(
-                    (b.x1 * sx).clamp(0.0, fw),
-                    (b.y1 * sy).clamp(0.0, fh),
-                    (b.x2 * sx).clamp(0.0, fw),
-                    (b.y2 * sy).clamp(0.0, fh),
-                );
-            }
+            cnn::rescale_detections(&mut dets, (w, h), (frame.width, frame.height));
             return Ok((dets, times));
         }
         let ms = |t: Instant| t.elapsed().as_secs_f64() * 1e3;

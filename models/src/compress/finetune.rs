@@ -3,14 +3,12 @@
 //! magnitude-pruning masks re-applied after every step.
 use super::prune::{Masks, apply_masks};
 use crate::config::TrainConfig;
-use crate::frames::{frame_truth, spread};
+use crate::frames::{image_tensor, resize, scaled_truth, spread};
 use crate::loss::image_losses;
-use crate::metrics::Truth;
 use crate::optim::{Optimizer, learning_rate};
 use crate::train::augment;
 use crate::{FasterRcnn, ModelError};
 use frugal_data::{Dataset, FrameRecord, Split};
-use frugal_runtime::BBox;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
@@ -43,26 +41,6 @@ impl Default for FinetuneConfig {
             seed: 11,
         }
     }
-}
-
-/// `[1, 3, H, W]` image in `[0, 1]` from an RGB8 buffer.
-pub fn image_tensor(rgb: &image::RgbImage) -> Tensor {
-    let (w, h) = (rgb.width() as i64, rgb.height() as i64);
-    Tensor::from_slice(rgb.as_raw())
-        .reshape([h, w, 3])
-        .permute([2, 0, 1])
-        .unsqueeze(0)
-        .to_kind(Kind::Float)
-        / 255.0
-}
-
-/// Resize a `[1, 3, H, W]` image to `height × width` (bilinear, half-pixel centres).
-pub fn resize(x: &Tensor, height: usize, width: usize) -> Tensor {
-    let s = x.size();
-    if s[2] == height as i64 && s[3] == width as i64 {
-        return x.shallow_clone();
-    }
-    x.upsample_bilinear2d([height as i64, width as i64], false, None, None)
 }
 
 /// Normalise a `[1, 3, H, W]` image in `[0, 1]` with the model's mean / std.
@@ -134,22 +112,7 @@ pub fn finetune(
                 .map_err(|e| ModelError::Data(e.to_string()))?;
             let img = augment(&image_tensor(&rgb), &tc, &mut rng);
             let x = normalise(model, &resize(&img, input.0, input.1));
-            let (sx, sy) = (
-                input.1 as f32 / f.width as f32,
-                input.0 as f32 / f.height as f32,
-            );
-            let truth: Vec<Truth> = frame_truth(f)
-                .into_iter()
-                .map(|t| Truth {
-                    class: t.class,
-                    bbox: BBox::new(
-                        t.bbox.x1 * sx,
-                        t.bbox.y1 * sy,
-                        t.bbox.x2 * sx,
-                        t.bbox.y2 * sy,
-                    ),
-                })
-                .collect();
+            let truth = scaled_truth(f, input);
             let l = image_losses(model, &x, &truth, &tc, &mut rng);
             total += l.total() / tc.batch_size as f64;
         }

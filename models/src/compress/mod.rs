@@ -442,7 +442,13 @@ pub fn compress(opts: &CompressOptions) -> Result<Vec<VariantRecord>, ModelError
     let first = ds.split(Split::Train).next().ok_or_else(|| {
         ModelError::Data(format!("{}: the train split is empty", opts.data.display()))
     })?;
-    let full = (first.height as usize, first.width as usize);
+    // the base model's input size (trained on these frames), else the frames' own
+    let full = FasterRcnn::load_dir(&opts.model, Device::Cpu)?
+        .config()
+        .input_size
+        .map_or((first.height as usize, first.width as usize), |[w, h]| {
+            (h, w)
+        });
     let calib_frames =
         crate::frames::spread(ds.split(Split::Train).collect(), grid.calibration_frames);
     let drift_frames = crate::frames::spread(ds.split(Split::Val).collect(), grid.drift_frames);
