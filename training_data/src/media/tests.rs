@@ -402,6 +402,42 @@ fn size_resizes_to_exactly_that_size() {
     }
 }
 
+#[test]
+fn a_rotated_video_reads_upright_as_ffmpeg_shows_it() {
+    need_ffmpeg!();
+    let dir = tempfile::tempdir().unwrap();
+    clip(dir.path(), "a.mp4", 3, 30, H264);
+    // Phones store portrait video as landscape frames and a rotation to apply.
+    ffmpeg(
+        &[
+            "-i",
+            "a.mp4",
+            "-c",
+            "copy",
+            "-metadata:s:v:0",
+            "rotate=90",
+            "r.mp4",
+        ],
+        dir.path(),
+    );
+    ffmpeg(&["-i", "r.mp4", "-frames:v", "1", "first.png"], dir.path());
+    let rotated = dir.path().join("r.mp4");
+    let info = probe(&rotated).unwrap();
+    assert_eq!((info.width, info.height), (H, W));
+    let frames = open(&rotated, &Sampling::default());
+    assert_eq!(indices(&frames), [0, 1, 2]);
+    let shown = image::open(dir.path().join("first.png"))
+        .unwrap()
+        .into_rgb8();
+    assert_eq!(frames[0].image.dimensions(), (H, W));
+    assert!(mad(&frames[0].image, &shown) < 0.5);
+    let turned = [
+        image::imageops::rotate90(&drawn(0)),
+        image::imageops::rotate270(&drawn(0)),
+    ];
+    assert!(turned.iter().any(|t| mad(&frames[0].image, t) < 3.0));
+}
+
 /// A variable-rate clip: `drawn(0..7)` shown for 80, 40, 200, 120, 160, 40 and 40 ms.
 fn variable_rate_clip(dir: &Path, name: &str) -> PathBuf {
     let frames = dir.join(format!("{name}.frames"));
