@@ -97,6 +97,7 @@ fn main() {
     ];
     let mut wall = vec![Vec::new(); cases.len()];
     let mut cpu = vec![Vec::new(); cases.len()];
+    let mut own_cpu = vec![Vec::new(); cases.len()];
     for _ in 0..RUNS {
         for (case, (name, run)) in cases.iter().enumerate() {
             let (start, cpu_start) = (Instant::now(), cpu_seconds());
@@ -106,7 +107,8 @@ fn main() {
             };
             wall[case].push(start.elapsed().as_secs_f64());
             if let (Some(a), Some(b)) = (cpu_start, cpu_seconds()) {
-                cpu[case].push(b - a);
+                own_cpu[case].push(b[0] - a[0]);
+                cpu[case].push(b[0] + b[1] - a[0] - a[1]);
             }
             assert_eq!(got, frames, "{name}: frames");
         }
@@ -120,8 +122,8 @@ fn main() {
          system time of this process and its children (ffmpeg)\n",
         std::thread::available_parallelism().map_or(1, |n| n.get())
     );
-    println!("| case | wall s | frames/s | CPU s | frames per CPU s |");
-    println!("|---|---:|---:|---:|---:|");
+    println!("| case | wall s | frames/s | CPU s | of which this process | frames per CPU s |");
+    println!("|---|---:|---:|---:|---:|---:|");
     let (mut rates, mut cpu_rates) = (Vec::new(), Vec::new());
     for (case, (name, _)) in cases.iter().enumerate() {
         let seconds = median(&mut wall[case]).unwrap_or(f64::NAN);
@@ -130,9 +132,10 @@ fn main() {
             Some(c) => (format!("{c:.2}"), frames as f64 / c),
             None => ("n/a".into(), f64::NAN),
         };
+        let own = median(&mut own_cpu[case]).map_or("n/a".into(), |c| format!("{c:.2}"));
         rates.push(rate);
         cpu_rates.push(cpu_rate);
-        println!("| {name} | {seconds:.3} | {rate:.0} | {cpu_text} | {cpu_rate:.0} |");
+        println!("| {name} | {seconds:.3} | {rate:.0} | {cpu_text} | {own} | {cpu_rate:.0} |");
     }
     println!(
         "\n(c)/(b) = {:.2} by wall time, {:.2} by CPU time;   (c)/(b2) = {:.2}, {:.2};   \
@@ -146,19 +149,19 @@ fn main() {
     );
 }
 
-/// User + system CPU seconds of this process and of its reaped children, from
-/// `/proc/self/stat` (Linux; `None` elsewhere). In clock ticks of 1/100 s (`USER_HZ`).
-fn cpu_seconds() -> Option<f64> {
+/// User + system CPU seconds of this process and of its reaped children (ffmpeg and
+/// ffprobe), from `/proc/self/stat` (Linux; `None` elsewhere), in clock ticks of 1/100 s
+/// (`USER_HZ`).
+fn cpu_seconds() -> Option<[f64; 2]> {
     let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
     // Fields after the parenthesised command name start at field 3 (state); utime,
     // stime, cutime and cstime are fields 14 to 17.
     let fields: Vec<&str> = stat.rsplit_once(')')?.1.split_whitespace().collect();
-    let ticks: Option<Vec<f64>> = fields
-        .get(11..15)?
-        .iter()
-        .map(|f| f.parse::<f64>().ok())
-        .collect();
-    Some(ticks?.iter().sum::<f64>() / 100.0)
+    let mut ticks = [0.0; 4];
+    for (tick, field) in ticks.iter_mut().zip(fields.get(11..15)?) {
+        *tick = field.parse::<f64>().ok()? / 100.0;
+    }
+    Some([ticks[0] + ticks[1], ticks[2] + ticks[3]])
 }
 
 /// Plain ffmpeg on one decoder thread: to `-f null` without a filter, else the filter's
