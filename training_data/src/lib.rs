@@ -41,6 +41,7 @@ pub mod error;
 pub mod font;
 pub mod generate;
 pub mod import;
+pub mod media;
 pub mod raster;
 pub mod scene;
 pub mod show;
