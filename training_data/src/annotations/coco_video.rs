@@ -19,8 +19,8 @@
 //! - without `bbox`, a polygon `segmentation` gives the polygon's bounding box
 //!   (min / max of its points); an RLE segmentation without `bbox` is an error.
 //!
-//! Two extras are read when present: `occluded` (bool) and `visibility` (number) on
-//! annotations. Frames are the images
+//! Extras written by [`write_coco_video`](super::write_coco_video) are read back:
+//! `occluded` (bool) and `visibility` (number) on annotations. Frames are the images
 //! (and `file_names`), so frames without boxes are kept; `file` is the `file_name`.
 //!
 //! Errors name the id: duplicate video, image, annotation or category ids, an image of

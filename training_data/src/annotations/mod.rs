@@ -1,5 +1,6 @@
 //! Video annotation formats (MOT Challenge, CVAT for video, COCO with videos,
-//! ImageNet VID) read into one neutral in-memory form.
+//! ImageNet VID) read into one neutral in-memory form, and written back as MOT or
+//! COCO-video.
 //!
 //! The neutral form is [`VideoAnnotations`]: a class list and videos, each video a map
 //! from **0-based** frame index to the boxes of that frame. Boxes are [`BBox`]es in
@@ -28,6 +29,7 @@
 //!         println!("{frame} {} {:?} ignore={}", ann.classes[b.class], b.bbox, b.ignore);
 //!     }
 //! }
+//! annotations::write_coco_video(&ann, "out/mot17-02.json".as_ref())?;
 //! # Ok(())
 //! # }
 //! ```
@@ -39,8 +41,10 @@ pub mod coco_video;
 pub mod cvat;
 pub mod imagenet_vid;
 pub mod mot;
+mod write;
 
 pub use mot::{MOT_CLASSES, MOT_DISTRACTORS};
+pub use write::{write_coco_video, write_mot};
 
 #[cfg(test)]
 mod tests;

@@ -16,8 +16,8 @@
 //! preprocessing:
 //! - class ids are MOT's ([`MOT_CLASSES`], 1 pedestrian … 12 reflection), and the
 //!   class list read is the MOT list (class index = id - 1). When a `labels.txt` sits
-//!   next to `gt.txt` (one name per line, as CVAT and Datumaro write MOT), class id
-//!   `k` names its line `k` instead;
+//!   next to `gt.txt` (one name per line, as CVAT and Datumaro write MOT, and as
+//!   [`write_mot`](super::write_mot) does), class id `k` names its line `k` instead;
 //! - a box is an ignore region when its flag (column 7) is 0, when its class is one of
 //!   the devkit's distractors [`MOT_DISTRACTORS`] (person_on_vehicle, static_person,
 //!   distractor, reflection: a pedestrian detection on them is neither a true nor a

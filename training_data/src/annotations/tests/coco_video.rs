@@ -230,3 +230,63 @@ fn errors_name_the_id() {
         ],
     );
 }
+
+#[test]
+fn writer_round_trips_every_reader() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let inputs = [
+        (AnnotationFormat::CocoVideo, "tao.json"),
+        (AnnotationFormat::CocoVideo, "ytvis.json"),
+        (AnnotationFormat::Mot, "mot9/gt/gt.txt"),
+        (AnnotationFormat::Mot, "mot7/gt/gt.txt"),
+        (AnnotationFormat::Cvat, "cvat_video.xml"),
+        (AnnotationFormat::ImagenetVid, "vid"),
+    ];
+    for (n, (format, rel)) in inputs.into_iter().enumerate() {
+        let mut ann = read(format, &fixture(rel), &opts()).expect("read fixture");
+        let out = dir.path().join(format!("{n}.json"));
+        write_coco_video(&ann, &out).expect("write");
+        ann.format = AnnotationFormat::CocoVideo;
+        assert_eq!(read_coco(&out), ann, "{rel}");
+    }
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("0.json")).expect("read"))
+            .expect("json");
+    assert_eq!(json["images"][1]["frame_index"], 30);
+    assert_eq!(
+        json["annotations"][0]["bbox"],
+        serde_json::json!([10.0, 20.0, 30.0, 40.0])
+    );
+    assert_eq!(json["annotations"][1]["iscrowd"], 1);
+    assert_eq!(json["annotations"][1]["track_id"], 101);
+    assert_eq!(
+        json["categories"][0],
+        serde_json::json!({"id": 1, "name": "person"})
+    );
+}
+
+#[test]
+fn writer_refuses_unknown_classes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut video = AnnotatedVideo::new("v");
+    video
+        .frames
+        .entry(3)
+        .or_default()
+        .boxes
+        .push(AnnotatedBox::new(2, bx(0.0, 0.0, 1.0, 1.0)));
+    let ann = VideoAnnotations {
+        format: AnnotationFormat::Mot,
+        classes: vec!["a".into()],
+        videos: vec![video],
+    };
+    let path = dir.path().join("x.json");
+    let msg = write_coco_video(&ann, &path)
+        .expect_err("class 2 of 1")
+        .to_string();
+    assert!(
+        msg.contains("video \"v\" frame index 3 box 0") && msg.contains("class 2"),
+        "{msg}"
+    );
+    assert!(!path.exists());
+}

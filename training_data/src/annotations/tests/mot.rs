@@ -223,3 +223,125 @@ fn errors_name_the_line() {
     let ini = d.join("bad/seqinfo.ini").display().to_string();
     assert!(msg.starts_with(&format!("{ini}: line 2: imWidth")), "{msg}");
 }
+
+/// Read `path` as MOT after writing `video` there.
+fn write_read(video: &AnnotatedVideo, classes: &[String], path: &Path) -> VideoAnnotations {
+    write_mot(video, classes, path).expect("write MOT");
+    read_mot(path, &opts())
+}
+
+#[test]
+fn writer_round_trips_the_fixtures() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for rel in ["mot7/gt/gt.txt", "mot9/gt/gt.txt", "mot10/gt.txt"] {
+        let ann = read_mot(&fixture(rel), &opts());
+        let mut video = ann.videos[0].clone();
+        video.name = format!("copy-{}", rel.replace('/', "-"));
+        let out = dir.path().join(&video.name).join("gt/gt.txt");
+        let back = write_read(&video, &ann.classes, &out);
+        assert_eq!(back.classes, ann.classes, "{rel}");
+        assert_eq!(back.videos, [video], "{rel}");
+    }
+    let text =
+        std::fs::read_to_string(dir.path().join("copy-mot9-gt-gt.txt/gt/gt.txt")).expect("read");
+    assert!(
+        text.starts_with("1,1,912,484,97,109,0,7,1\n1,2,1338,418,167,379,1,1,0.86\n"),
+        "{text}"
+    );
+    assert!(text.ends_with("4,6,200,200,30,60,0,1,-1\n"), "{text}");
+    let ini =
+        std::fs::read_to_string(dir.path().join("copy-mot7-gt-gt.txt/seqinfo.ini")).expect("ini");
+    assert!(
+        ini.contains("imDir=img1\n")
+            && ini.contains("imExt=.jpg\n")
+            && ini.contains("frameRate=25\n"),
+        "{ini}"
+    );
+}
+
+#[test]
+fn writer_keeps_classes_that_are_not_mot_names() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let classes: Vec<String> = ["sign", "car"].map(String::from).to_vec();
+    let mut video = AnnotatedVideo::new("custom");
+    video.frames.entry(0).or_default().boxes = vec![
+        tracked(0, Some(4), bx(1.0, 2.0, 3.0, 4.0)),
+        AnnotatedBox {
+            ignore: true,
+            visibility: Some(0.3),
+            ..tracked(1, None, bx(5.0, 6.0, 7.5, 8.25))
+        },
+    ];
+    let out = dir.path().join("custom/gt/gt.txt");
+    let back = write_read(&video, &classes, &out);
+    assert_eq!(back.classes, classes);
+    assert_eq!(back.videos, [video.clone()]);
+    let labels = std::fs::read_to_string(dir.path().join("custom/gt/labels.txt")).expect("labels");
+    assert_eq!(labels, "sign\ncar\n");
+
+    // All MOT names, but not MOT's list: MOT ids, names kept, indices into the MOT list.
+    let classes: Vec<String> = ["car", "pedestrian"].map(String::from).to_vec();
+    let back = write_read(&video, &classes, &dir.path().join("mot/gt.txt"));
+    assert_eq!(back.classes, mot_names());
+    let text = std::fs::read_to_string(dir.path().join("mot/gt.txt")).expect("gt");
+    assert_eq!(text, "1,4,1,2,2,2,1,3,-1\n1,-1,5,6,2.5,2.25,0,1,0.3\n");
+    let names: Vec<&str> = back.videos[0]
+        .boxes()
+        .map(|(_, b)| back.classes[b.class].as_str())
+        .collect();
+    assert_eq!(names, ["car", "pedestrian"]);
+}
+
+#[test]
+fn writer_round_trips_awkward_floats() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let mut video = AnnotatedVideo::new("floats");
+    for k in 0..400u32 {
+        let scale = [1.0f32, 0.01, 1000.0, 1.0e6][k as usize % 4];
+        let x1: f32 = rng.random_range(-1.0..1.0) * scale;
+        let y1: f32 = rng.random_range(0.0..1.0) * scale;
+        let (w, h): (f32, f32) = (
+            rng.random_range(0.0..2.0) * scale,
+            rng.random_range(0.0..0.001),
+        );
+        let mut b = tracked(0, Some(u64::from(k)), bx(x1, y1, x1 + w, y1 + h));
+        b.visibility = Some(rng.random_range(0.0..1.0));
+        video.frames.entry(k / 3).or_default().boxes.push(b);
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let back = write_read(&video, &mot_names(), &dir.path().join("floats.txt"));
+    assert_eq!(back.videos[0].frames, video.frames);
+}
+
+#[test]
+fn writer_refuses_what_mot_cannot_hold() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("gt.txt");
+    let mut video = AnnotatedVideo::new("bad");
+    video.frames.entry(2).or_default().boxes = vec![tracked(3, None, bx(0.0, 0.0, 1.0, 1.0))];
+    let msg = write_mot(&video, &mot_names()[..2], &path)
+        .expect_err("class 3 of 2")
+        .to_string();
+    assert!(
+        msg.contains("frame index 2 box 0") && msg.contains("class 3"),
+        "{msg}"
+    );
+    video.frames.entry(2).or_default().boxes = vec![
+        tracked(0, Some(1), bx(0.0, 0.0, 1.0, 1.0)),
+        tracked(0, Some(1), bx(2.0, 0.0, 3.0, 1.0)),
+    ];
+    let msg = write_mot(&video, &mot_names(), &path)
+        .expect_err("same track twice")
+        .to_string();
+    assert!(
+        msg.contains("frame index 2 box 1") && msg.contains("track 1"),
+        "{msg}"
+    );
+    video.frames.entry(2).or_default().boxes = vec![tracked(0, None, bx(5.0, 0.0, 1.0, 1.0))];
+    let msg = write_mot(&video, &mot_names(), &path)
+        .expect_err("negative width")
+        .to_string();
+    assert!(msg.contains("negative width"), "{msg}");
+    assert!(!path.exists());
+}
