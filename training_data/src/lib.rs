@@ -33,6 +33,7 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod annotations;
 pub mod classes;
 pub mod coco;
 pub mod config;
