@@ -45,6 +45,8 @@ mod fly;
 mod pareto;
 #[path = "cli/policy.rs"]
 mod policy;
+#[path = "cli/real.rs"]
+mod real;
 #[path = "cli/run.rs"]
 mod run;
 #[path = "cli/train.rs"]

@@ -78,12 +78,9 @@ pub struct CocoCategory {
 impl CocoAnnotation {
     /// The COCO form of an object.
     pub fn from_object(id: u64, image_id: u64, o: &Object) -> Self {
-        let (x, y, w, h) = (
-            f64::from(o.bbox.x1),
-            f64::from(o.bbox.y1),
-            f64::from(o.bbox.width()),
-            f64::from(o.bbox.height()),
-        );
+        // width and height in f64: exact differences of the f32 corners
+        let (x, y) = (f64::from(o.bbox.x1), f64::from(o.bbox.y1));
+        let (w, h) = (f64::from(o.bbox.x2) - x, f64::from(o.bbox.y2) - y);
         CocoAnnotation {
             id,
             image_id,
@@ -96,8 +93,10 @@ impl CocoAnnotation {
 
     /// The box as a [`BBox`].
     pub fn to_bbox(&self) -> BBox {
+        // the right and bottom edges are summed in f64, so a box written by
+        // [`CocoAnnotation::from_object`] reads back to the same f32 corners
         let [x, y, w, h] = self.bbox;
-        BBox::from_xywh(x as f32, y as f32, w as f32, h as f32)
+        BBox::new(x as f32, y as f32, (x + w) as f32, (y + h) as f32)
     }
 }
 

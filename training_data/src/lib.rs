@@ -60,7 +60,8 @@ pub use error::DataError;
 pub use frugal_runtime::{BBox, ClassId};
 pub use generate::{generate, generate_or_reuse};
 pub use import::{
-    ClassList, ClassMap, Format, ImportCounts, ImportOptions, export_coco, import, parse_action,
+    ClassList, ClassMap, Format, ImportCounts, ImportOptions, ImportSettings, export_coco, import,
+    parse_action,
 };
 pub use sign::{SignStyle, render_sign};
 pub use summary::{Summary, summary};

@@ -628,3 +628,212 @@ fn a_box_reaching_past_the_image_is_clipped_and_counted() {
     assert_eq!(counts.clipped_boxes, 1);
     assert_eq!(got.classes.len(), 1, "the source's one class");
 }
+
+/// `../shared/data/tud-campus`, the real MOT fixture (not in the repository), if present.
+fn tud_campus() -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/tud-campus");
+    if p.join("gt/gt.txt").is_file() {
+        Some(p)
+    } else {
+        eprintln!("skipped: {} is absent", p.display());
+        None
+    }
+}
+
+#[test]
+fn tud_campus_imports_with_its_71_frames_and_359_boxes_split_by_time() {
+    let Some(tud) = tud_campus() else { return };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut opts = ImportOptions::new(
+        Format::Video(crate::annotations::AnnotationFormat::Mot),
+        tud.join("gt/gt.txt"),
+    );
+    opts.fps = Some(25.0);
+    opts.actions = [("pedestrian".to_owned(), NavAction::Wait)]
+        .into_iter()
+        .collect();
+    let ds = import(&opts, &dir.path().join("tud")).expect("import");
+    assert_eq!(ds.frames.len(), 71);
+    assert_eq!(
+        ds.frames.iter().map(|f| f.objects.len()).sum::<usize>(),
+        359
+    );
+    assert_eq!(ds.classes.len(), 1);
+    assert_eq!(ds.classes[0].name, "pedestrian");
+    assert_eq!(ds.classes[0].action, Some(NavAction::Wait));
+    assert!(ds.frames.iter().all(|f| (f.width, f.height) == (640, 480)));
+    // first 70 % train, next 15 % val, last 15 % test, in time order
+    let per: Vec<usize> = Split::ALL.iter().map(|&s| ds.split(s).count()).collect();
+    assert_eq!(per, [50, 11, 10]);
+    assert_eq!(ds.videos.len(), 3);
+    let names: Vec<&str> = ds.videos.iter().filter_map(|v| v.name.as_deref()).collect();
+    assert_eq!(names.len(), 3);
+    assert!(
+        names[0].ends_with("#0-49") && names[2].ends_with("#61-70"),
+        "{names:?}"
+    );
+    // real time: 25 fps, from each part's start
+    let test: Vec<&FrameRecord> = ds.split(Split::Test).collect();
+    assert_eq!(test[0].time_s, Some(0.0));
+    assert!((ds.frame_time(test[9]) - 9.0 / 25.0).abs() < 1e-9);
+    assert!(ds.videos.iter().all(|v| v.fps == Some(25.0)));
+    // the first frame's boxes are gt.txt's frame-1 lines (x, y, w, h), clipped to 640×480
+    let first = &ds.frames[0];
+    assert!(
+        first
+            .objects
+            .iter()
+            .any(|o| o.bbox == BBox::new(399.0, 182.0, 520.0, 411.0))
+    );
+    // and it loads back
+    let again = Dataset::load(&ds.root).expect("load");
+    for (a, b) in again.frames.iter().zip(&ds.frames) {
+        assert_eq!(a, b);
+    }
+}
+
+/// Whether the `ffmpeg` program is installed (the set-up installs it).
+fn have_ffmpeg() -> bool {
+    let ok = std::process::Command::new("ffmpeg")
+        .arg("-version")
+        .stdout(std::process::Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !ok {
+        eprintln!("skipped: ffmpeg is not installed (cargo xtask setup installs it)");
+    }
+    ok
+}
+
+/// One synthetic video of `ds` as an H.264 MP4 at 30 fps (near-lossless) plus a MOT
+/// `gt.txt` of its boxes; returns (mp4, gt.txt, its frames).
+fn synthetic_mp4(ds: &Dataset, dir: &Path) -> (PathBuf, PathBuf, Vec<FrameRecord>) {
+    let video = ds
+        .videos
+        .iter()
+        .max_by_key(|v| (v.frames, v.id))
+        .expect("a video")
+        .id;
+    let frames: Vec<FrameRecord> = ds
+        .frames
+        .iter()
+        .filter(|f| f.video == video)
+        .cloned()
+        .collect();
+    let pngs = dir.join("png");
+    std::fs::create_dir_all(&pngs).expect("mkdir");
+    let mut gt = String::new();
+    for f in &frames {
+        std::fs::copy(ds.frame_path(f), pngs.join(format!("{:06}.png", f.index))).expect("copy");
+        for (k, o) in f.objects.iter().enumerate() {
+            let b = o.bbox;
+            gt += &format!(
+                "{},{},{},{},{},{},1\n",
+                f.index + 1,
+                k + 1,
+                b.x1,
+                b.y1,
+                b.x2 - b.x1,
+                b.y2 - b.y1
+            );
+        }
+    }
+    let mp4 = dir.join("clip.mp4");
+    let status = std::process::Command::new("ffmpeg")
+        .args(["-v", "error", "-y", "-framerate", "30", "-i"])
+        .arg(pngs.join("%06d.png"))
+        .args(["-c:v", "libx264", "-qp", "0", "-pix_fmt", "yuv444p"])
+        .arg(&mp4)
+        .status()
+        .expect("ffmpeg");
+    assert!(status.success());
+    let gt_path = dir.join("gt.txt");
+    std::fs::write(&gt_path, gt).expect("gt");
+    (mp4, gt_path, frames)
+}
+
+#[test]
+fn an_mp4_with_a_mot_file_imports_its_frames_boxes_and_timestamps() {
+    if !have_ffmpeg() {
+        return;
+    }
+    let ds = tiny();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (mp4, gt, frames) = synthetic_mp4(ds, dir.path());
+    let mut opts = ImportOptions::new(Format::from_name("mot").expect("mot"), &gt);
+    opts.video = Some(mp4.clone());
+    opts.split = Some(Split::Test);
+    opts.default_class = "sign".into();
+    let got = import(&opts, &dir.path().join("out")).expect("import");
+    assert_eq!(got.frames.len(), frames.len());
+    assert_eq!(got.classes.len(), 1);
+    for (a, b) in got.frames.iter().zip(&frames) {
+        let boxes = |f: &FrameRecord| f.objects.iter().map(|o| o.bbox).collect::<Vec<_>>();
+        assert_eq!(boxes(a), boxes(b), "frame {}", b.index);
+        // 30 fps, exactly
+        assert!((got.frame_time(a) - f64::from(b.index) / 30.0).abs() < 1e-6);
+        // the same pixels within codec error
+        let (x, y) = (got.load_rgb(a).expect("rgb"), ds.load_rgb(b).expect("rgb"));
+        assert_eq!(x.dimensions(), y.dimensions());
+        let diff: f64 = x
+            .as_raw()
+            .iter()
+            .zip(y.as_raw())
+            .map(|(p, q)| f64::from(p.abs_diff(*q)))
+            .sum::<f64>()
+            / x.as_raw().len() as f64;
+        // (H.264 at qp 0 in 4:4:4, then the dataset's JPEG at quality 95)
+        assert!(diff < 4.0, "frame {}: mean abs difference {diff}", b.index);
+    }
+    assert_eq!(got.videos[0].fps, Some(30.0));
+
+    // every second frame: the kept frames keep their source times
+    opts.sampling.every = 2;
+    let half = import(&opts, &dir.path().join("half")).expect("import every 2");
+    assert_eq!(half.frames.len(), frames.len().div_ceil(2));
+    assert!((half.frame_time(&half.frames[1]) - 2.0 / 30.0).abs() < 1e-6);
+}
+
+#[test]
+fn bad_video_imports_name_the_file_and_write_nothing() {
+    if !have_ffmpeg() {
+        return;
+    }
+    let ds = tiny();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (mp4, gt, frames) = synthetic_mp4(ds, dir.path());
+    let try_import = |gt: &Path, video: &Path, name: &str| -> String {
+        let mut opts = ImportOptions::new(Format::from_name("mot").expect("mot"), gt);
+        opts.video = Some(video.to_owned());
+        let out = dir.path().join(name);
+        let err = import(&opts, &out).expect_err(name).to_string();
+        assert!(!out.exists(), "{name}: nothing is written");
+        assert_eq!(err.lines().count(), 1, "{name}: one line: {err}");
+        err
+    };
+    // an annotation past the video's end
+    let past = dir.path().join("past.txt");
+    let n = frames.len();
+    std::fs::write(&past, format!("1,1,2,2,5,5,1\n{},1,2,2,5,5,1\n", n + 3)).expect("write");
+    let err = try_import(&past, &mp4, "past");
+    assert!(
+        err.contains("past.txt") && err.contains(&format!("frame {}", n + 3)),
+        "{err}"
+    );
+    // a truncated video
+    let bytes = std::fs::read(&mp4).expect("read");
+    let cut = dir.path().join("cut.mp4");
+    std::fs::write(&cut, &bytes[..bytes.len() / 3]).expect("write");
+    let err = try_import(&gt, &cut, "cut");
+    assert!(err.contains("cut.mp4"), "{err}");
+    // an empty video file
+    let empty = dir.path().join("empty.mp4");
+    std::fs::write(&empty, b"").expect("write");
+    let err = try_import(&gt, &empty, "empty");
+    assert!(err.contains("empty.mp4"), "{err}");
+    // a negative box
+    let neg = dir.path().join("neg.txt");
+    std::fs::write(&neg, "1,1,2,2,-5,5,1\n").expect("write");
+    let err = try_import(&neg, &mp4, "neg");
+    assert!(err.contains("neg.txt") && err.contains("line 1"), "{err}");
+}

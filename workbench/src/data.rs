@@ -2,9 +2,7 @@
 //! import real datasets and export to COCO.
 use anyhow::Context;
 use clap::{Args, Subcommand, ValueEnum};
-use frugal_data::{
-    ClassMap, Clutter, Dataset, Format, GenConfig, ImportOptions, Light, Split, show,
-};
+use frugal_data::{Clutter, Dataset, GenConfig, ImportSettings, Light, Split, show};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `frugal data`.
@@ -35,14 +33,16 @@ enum DataCommand {
     /// Draw boxes and class labels onto frames (PNG) so a person can check them, and/or
     /// make a contact sheet: a grid of annotated thumbnails across every scenario level.
     Show(ShowArgs),
-    /// Import a real dataset (COCO JSON, Pascal VOC XML, GTSDB-style CSV) into frugal's
-    /// dataset form: PNG frames, COCO per split, manifest.
+    /// Import a real dataset (COCO JSON, Pascal VOC XML, GTSDB-style CSV; video files or
+    /// image folders with MOT, CVAT for video, COCO-video or ImageNet VID annotations) into frugal's
+    /// dataset form: frames, COCO per split, manifest.
     ///
-    /// Source classes are matched to frugal's class names or codes (e.g. `stop`, `B5`),
-    /// or mapped with --class-map; unmapped classes are an error unless
-    /// --drop-unmapped. Images without video information become one video each and are
-    /// split by a fixed hash of the video id unless --split is given.
-    Import(ImportArgs),
+    /// The dataset keeps the source's classes (renamed or merged with --class-map), or
+    /// maps them onto the ten signs (--classes signs) or a list of your own. Images
+    /// without video information become one video each and are split by a fixed hash
+    /// of the video id unless --split is given; a video is cut into train / val / test
+    /// parts in time order (--time-split, the default below three videos).
+    Import(Box<ImportArgs>),
     /// Export a dataset as a self-contained COCO folder: annotations.json (category_id =
     /// class id + 1; images carry video, index, split) and the frames.
     Export {
@@ -94,17 +94,48 @@ struct ShowArgs {
 /// Options of `frugal data import`.
 #[derive(Args, Debug)]
 struct ImportArgs {
-    /// Source format.
-    #[arg(long, value_enum)]
-    format: ImportFormat,
-    /// The annotation file (COCO JSON, GTSDB CSV) or VOC XML file / folder of XML files.
-    input: PathBuf,
+    /// Source format: coco, voc, gtsdb (still images); mot, cvat, coco-video,
+    /// imagenet-vid (video annotations).
+    #[arg(long, required_unless_present = "config")]
+    format: Option<String>,
+    /// The annotation file (COCO / COCO-video JSON, MOT gt.txt, CVAT XML, GTSDB CSV) or
+    /// folder (VOC, ImageNet VID).
+    #[arg(required_unless_present = "config")]
+    input: Option<PathBuf>,
+    /// Read every import setting from this TOML or JSON file (the `[import]` section of
+    /// a run config); the flags below are then ignored.
+    #[arg(long)]
+    config: Option<PathBuf>,
     /// Output dataset folder.
     #[arg(long)]
     out: PathBuf,
     /// Folder the image paths are relative to (default: the annotation file's folder).
     #[arg(long)]
     images: Option<PathBuf>,
+    /// Video formats: the video file (MP4, AVI, MKV, MOV, … decoded by ffmpeg) or
+    /// image folder holding the frames (default: the images the annotations name, or
+    /// MOT's img1/).
+    #[arg(long)]
+    video: Option<PathBuf>,
+    /// Frame rate of an image folder (default: the annotations', else 30).
+    #[arg(long)]
+    fps: Option<f64>,
+    /// Keep one frame in N.
+    #[arg(long, default_value_t = 0)]
+    every: u32,
+    /// Keep at most F frames per second.
+    #[arg(long)]
+    sample_fps: Option<f64>,
+    /// Start of the time window, seconds.
+    #[arg(long)]
+    start: Option<f64>,
+    /// End of the time window, seconds.
+    #[arg(long)]
+    end: Option<f64>,
+    /// Cut each video into consecutive train,val,test parts of these fractions, e.g.
+    /// 0.7,0.15,0.15 (default for sets of fewer than three videos).
+    #[arg(long, value_parser = parse_fractions)]
+    time_split: Option<[f64; 3]>,
     /// JSON or TOML map from source class (name or numeric id) to the class it becomes,
     /// e.g. {"14": "stop", "33": "turn_right", "person": "pedestrian"}.
     #[arg(long)]
@@ -122,6 +153,12 @@ struct ImportArgs {
     /// repeat for several, e.g. --action pedestrian=wait.
     #[arg(long = "action", value_parser = frugal_data::parse_action)]
     actions: Vec<(String, frugal_data::NavAction)>,
+    /// The class of MOT files without a class column.
+    #[arg(long, default_value = "pedestrian")]
+    default_class: String,
+    /// MOT: boxes less visible than this (0-1) are marked ignore.
+    #[arg(long, default_value_t = 0.0)]
+    min_visibility: f32,
     /// Images listed but missing are an error (default: skipped and counted).
     #[arg(long)]
     strict: bool,
@@ -134,16 +171,59 @@ struct ImportArgs {
     /// Light level recorded for the imported videos.
     #[arg(long, value_enum, default_value = "normal")]
     light: LightArg,
+    /// Hide the progress bar.
+    #[arg(long)]
+    quiet: bool,
 }
 
-#[derive(ValueEnum, Debug, Clone, Copy)]
-enum ImportFormat {
-    /// COCO JSON.
-    Coco,
-    /// Pascal VOC XML.
-    Voc,
-    /// GTSDB-style CSV `file;x1;y1;x2;y2;class`.
-    Gtsdb,
+impl ImportArgs {
+    /// The settings the flags (or the --config file) describe.
+    fn settings(&self) -> anyhow::Result<ImportSettings> {
+        if let Some(path) = &self.config {
+            return Ok(ImportSettings::from_file(path)?);
+        }
+        let (Some(format), Some(input)) = (&self.format, &self.input) else {
+            anyhow::bail!("give --format and the annotation file, or --config");
+        };
+        let mut s = ImportSettings::new(format, input);
+        s.images.clone_from(&self.images);
+        s.video.clone_from(&self.video);
+        s.fps = self.fps;
+        s.every = self.every;
+        s.sample_fps = self.sample_fps;
+        s.start_s = self.start;
+        s.end_s = self.end;
+        s.time_split = self.time_split;
+        s.split = self.split;
+        s.classes.clone_from(&self.classes);
+        if let Some(map) = &self.class_map {
+            s.class_map = frugal_data::import::classes::read_class_map(map)?;
+        }
+        s.drop_unmapped = self.drop_unmapped;
+        s.actions = self.actions.iter().cloned().collect();
+        s.default_class.clone_from(&self.default_class);
+        s.min_visibility = self.min_visibility;
+        s.strict = self.strict;
+        s.clutter = match self.clutter {
+            ClutterArg::Low => Clutter::Low,
+            ClutterArg::Medium => Clutter::Medium,
+            ClutterArg::High => Clutter::High,
+        };
+        s.light = match self.light {
+            LightArg::Normal => Light::Normal,
+            LightArg::Low => Light::Low,
+        };
+        Ok(s)
+    }
+}
+
+fn parse_fractions(s: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("{s:?}: {e}"))?;
+    <[f64; 3]>::try_from(v).map_err(|_| format!("{s:?}: give three fractions train,val,test"))
 }
 
 #[derive(ValueEnum, Debug, Clone, Copy)]
@@ -254,32 +334,8 @@ pub fn run(args: DataArgs) -> anyhow::Result<()> {
         }
         DataCommand::Show(a) => show(a),
         DataCommand::Import(a) => {
-            let mut opts = ImportOptions::new(
-                match a.format {
-                    ImportFormat::Coco => Format::Coco,
-                    ImportFormat::Voc => Format::Voc,
-                    ImportFormat::Gtsdb => Format::Gtsdb,
-                },
-                &a.input,
-            );
-            opts.images = a.images;
-            if let Some(map) = &a.class_map {
-                opts.class_map = ClassMap::from_file(map)?;
-            }
-            opts.drop_unmapped = a.drop_unmapped;
-            opts.classes = frugal_data::ClassList::parse(&a.classes)?;
-            opts.actions = a.actions.into_iter().collect();
-            opts.strict = a.strict;
-            opts.split = a.split;
-            opts.clutter = match a.clutter {
-                ClutterArg::Low => Clutter::Low,
-                ClutterArg::Medium => Clutter::Medium,
-                ClutterArg::High => Clutter::High,
-            };
-            opts.light = match a.light {
-                LightArg::Normal => Light::Normal,
-                LightArg::Low => Light::Low,
-            };
+            let mut opts = a.settings()?.options()?;
+            opts.progress = !a.quiet;
             let ds = frugal_data::import(&opts, &a.out)?;
             println!(
                 "imported {} frames into {}",

@@ -70,19 +70,25 @@ pub struct ClassMap {
     map: BTreeMap<String, String>,
 }
 
+/// Read a JSON (or `.toml`) object `{"source class": "class name"}`.
+pub fn read_class_map(path: &Path) -> Result<BTreeMap<String, String>, DataError> {
+    let text = std::fs::read_to_string(path).map_err(|e| DataError::io(path, e))?;
+    if path.extension().is_some_and(|e| e == "toml") {
+        toml::from_str(&text).map_err(|e| DataError::Config {
+            path: path.to_owned(),
+            message: e.to_string(),
+        })
+    } else {
+        serde_json::from_str(&text).map_err(|e| DataError::json(path, e))
+    }
+}
+
 impl ClassMap {
     /// Read a JSON (or `.toml`) object `{"source class": "class name"}`.
     pub fn from_file(path: &Path) -> Result<Self, DataError> {
-        let text = std::fs::read_to_string(path).map_err(|e| DataError::io(path, e))?;
-        let map: BTreeMap<String, String> = if path.extension().is_some_and(|e| e == "toml") {
-            toml::from_str(&text).map_err(|e| DataError::Config {
-                path: path.to_owned(),
-                message: e.to_string(),
-            })?
-        } else {
-            serde_json::from_str(&text).map_err(|e| DataError::json(path, e))?
-        };
-        Ok(Self { map })
+        Ok(Self {
+            map: read_class_map(path)?,
+        })
     }
 
     /// A map from pairs.

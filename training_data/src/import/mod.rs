@@ -36,8 +36,13 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 pub mod classes;
+pub mod settings;
+pub mod video;
 
+use crate::annotations::AnnotationFormat;
+use crate::media::Sampling;
 pub use classes::{ClassList, ClassMap, parse_action};
+pub use settings::ImportSettings;
 
 /// A source annotation format.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -49,16 +54,35 @@ pub enum Format {
     Voc,
     /// GTSDB-style CSV `file;x1;y1;x2;y2;class` (one file).
     Gtsdb,
+    /// A video annotation format (MOT, CVAT for video, COCO with videos, ImageNet VID).
+    Video(AnnotationFormat),
 }
 
 impl Format {
-    /// `coco`, `voc` or `gtsdb`.
+    /// Every format.
+    pub const ALL: [Format; 7] = [
+        Format::Coco,
+        Format::Voc,
+        Format::Gtsdb,
+        Format::Video(AnnotationFormat::Mot),
+        Format::Video(AnnotationFormat::Cvat),
+        Format::Video(AnnotationFormat::CocoVideo),
+        Format::Video(AnnotationFormat::ImagenetVid),
+    ];
+
+    /// `coco`, `voc`, `gtsdb`, `mot`, `cvat`, `coco-video` or `imagenet-vid`.
     pub fn name(self) -> &'static str {
         match self {
             Format::Coco => "coco",
             Format::Voc => "voc",
             Format::Gtsdb => "gtsdb",
+            Format::Video(f) => f.name(),
         }
+    }
+
+    /// The format with this name.
+    pub fn from_name(name: &str) -> Option<Format> {
+        Format::ALL.into_iter().find(|f| f.name() == name)
     }
 }
 
@@ -83,6 +107,23 @@ pub struct ImportOptions {
     pub actions: BTreeMap<String, NavAction>,
     /// Images listed but missing are an error instead of skipped.
     pub strict: bool,
+    /// Video formats: the video file or image folder holding the frames (default: the
+    /// images the annotations name, or MOT's `img1/`).
+    pub video: Option<PathBuf>,
+    /// Video formats: the frame rate of an image folder (default: the annotations', else
+    /// 30).
+    pub fps: Option<f64>,
+    /// Video formats: which frames to read (every N-th, at most F per second, a window).
+    pub sampling: Sampling,
+    /// Video formats: cut each video into consecutive train / val / test parts of these
+    /// fractions (see [`video`](mod@video)).
+    pub time_split: Option<[f64; 3]>,
+    /// Video formats without a class column (MOT's 7- and 10-column layouts): the class.
+    pub default_class: String,
+    /// MOT: boxes less visible than this are marked ignore.
+    pub min_visibility: f32,
+    /// Draw a progress bar on stderr.
+    pub progress: bool,
     /// Put everything into this split (default: from the source, else by video hash).
     pub split: Option<Split>,
     /// Scenario levels recorded for the imported videos.
@@ -104,6 +145,13 @@ impl ImportOptions {
             classes: ClassList::Source,
             actions: BTreeMap::new(),
             strict: false,
+            video: None,
+            fps: None,
+            sampling: Sampling::default(),
+            time_split: None,
+            default_class: "pedestrian".into(),
+            min_visibility: 0.0,
+            progress: false,
             split: None,
             clutter: Clutter::Medium,
             light: Light::Normal,
@@ -495,6 +543,16 @@ pub(crate) fn collect_videos(
 /// Import a dataset into `out` (written to `<out>.partial-XXXX`, then swapped in).
 /// Images are decoded, checked against their annotations and stored as PNG frames.
 pub fn import(opts: &ImportOptions, out: &Path) -> Result<Dataset, DataError> {
+    opts.sampling.check(&opts.input)?;
+    if let Some(t) = opts.time_split
+        && (t.iter().any(|v| !(v.is_finite() && *v >= 0.0)) || t[0] <= 0.0)
+    {
+        return Err(DataError::invalid(
+            &opts.input,
+            "time split",
+            format!("{t:?}: fractions must be ≥ 0 with a non-zero train part"),
+        ));
+    }
     let root = match &opts.images {
         Some(r) => r.clone(),
         None if opts.format == Format::Voc && opts.input.is_dir() => opts.input.clone(),
@@ -505,6 +563,7 @@ pub fn import(opts: &ImportOptions, out: &Path) -> Result<Dataset, DataError> {
         Format::Coco => read_coco(opts, &root, &mut table)?,
         Format::Voc => read_voc(opts, &root, &mut table)?,
         Format::Gtsdb => read_gtsdb(opts, &root, &mut table)?,
+        Format::Video(f) => return video::import_video(opts, f, out),
     };
     let classes = table.finish(&opts.actions, &opts.input)?;
     let mut counts = ImportCounts::default();

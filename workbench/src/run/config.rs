@@ -123,6 +123,12 @@ pub struct RunConfig {
     pub profile: Profile,
     /// `frugal data generate`.
     pub data: GenConfig,
+    /// `frugal data import`: real footage instead of the synthetic videos. With it the
+    /// data stage imports, the budget stage scores the imported test part only (no
+    /// synthetic held-out videos), and maze flights run only when the classes are the
+    /// synthetic signs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub import: Option<frugal_data::ImportSettings>,
     /// `frugal train` (model structure and training).
     pub detector: DetectorConfig,
     /// `frugal compress` (the variant grid).
@@ -271,6 +277,7 @@ impl RunConfig {
             Profile::Default => RunConfig {
                 profile,
                 data: GenConfig::default(),
+                import: None,
                 detector,
                 compress: Grid::default(),
                 pareto: ParetoSettings {
@@ -301,6 +308,7 @@ impl RunConfig {
             },
             Profile::Quick => RunConfig {
                 profile,
+                import: None,
                 // short training clips as in the default, at 320×180
                 data: GenConfig {
                     videos_per_combo: 24,
@@ -340,6 +348,7 @@ impl RunConfig {
             Profile::Tiny => RunConfig {
                 profile,
                 data: GenConfig::tiny(),
+                import: None,
                 detector: parse_detector(TINY_DETECTOR)?,
                 compress: parse_grid(TINY_GRID)?,
                 pareto: ParetoSettings {
@@ -409,6 +418,12 @@ impl RunConfig {
             })?,
         };
         let mut merged = serde_json::to_value(RunConfig::profile(profile)?)?;
+        // keys no profile sets, which a config file may: present, as unset
+        for (parent, key) in [("", "import"), ("/detector/model", "input_size")] {
+            if let Some(Value::Object(m)) = merged.pointer_mut(parent) {
+                m.entry(key).or_insert(Value::Null);
+            }
+        }
         merge(&mut merged, &user, "").with_context(|| path.display().to_string())?;
         let cfg = from_sections(&merged).with_context(|| path.display().to_string())?;
         cfg.check(path)?;
@@ -507,8 +522,13 @@ impl RunConfig {
         self.heldout
             .validate(path)
             .context("in section [heldout]")?;
+        if let Some(i) = &self.import {
+            i.options().context("in section [import]")?;
+        }
         let (h, d) = (&self.heldout, &self.data);
-        if h.seed == d.seed {
+        if self.import.is_some() {
+            // the held-out videos are the imported test part: [heldout] is not used
+        } else if h.seed == d.seed {
             return Err(bad(
                 "heldout.seed",
                 format!(
@@ -517,7 +537,7 @@ impl RunConfig {
                 ),
             ));
         }
-        if (h.width, h.height) != (d.width, d.height) {
+        if self.import.is_none() && (h.width, h.height) != (d.width, d.height) {
             return Err(bad(
                 "heldout.width / heldout.height",
                 format!(
@@ -580,6 +600,7 @@ fn from_sections(v: &Value) -> anyhow::Result<RunConfig> {
     Ok(RunConfig {
         profile: section(v, "profile")?,
         data: section(v, "data")?,
+        import: section(v, "import")?,
         detector: section(v, "detector")?,
         compress: section(v, "compress")?,
         pareto: section(v, "pareto")?,

@@ -30,7 +30,7 @@ pub(crate) const STAGES: [StageDef; 10] = [
     StageDef {
         name: "data",
         deps: &[],
-        what: "synthetic videos with exact boxes, and a contact sheet",
+        what: "the dataset (synthetic videos with exact boxes, or imported footage), and a contact sheet",
     },
     StageDef {
         name: "detector",
@@ -65,7 +65,7 @@ pub(crate) const STAGES: [StageDef; 10] = [
     StageDef {
         name: "budget",
         deps: &["replay", "policy", "pareto"],
-        what: "the budget + content policy, and every strategy streamed on a simulated clock (streaming AP) on the test videos and on held-out videos of a new seed",
+        what: "the budget + content policy, and every strategy streamed on a simulated clock (streaming AP) on the test videos and (synthetic data) on held-out videos of a new seed",
     },
     StageDef {
         name: "bundle",
@@ -75,7 +75,7 @@ pub(crate) const STAGES: [StageDef; 10] = [
     StageDef {
         name: "flights",
         deps: &["bundle", "evaluation", "pareto"],
-        what: "closed-loop maze flights, static detector against the adaptive runtime",
+        what: "closed-loop maze flights, static detector against the adaptive runtime (when the classes are the synthetic signs)",
     },
 ];
 
@@ -196,7 +196,10 @@ impl Ctx {
     fn section(&self, name: &str) -> anyhow::Result<Value> {
         let c = &self.config;
         Ok(match name {
-            "data" => serde_json::to_value(&c.data)?,
+            "data" => match &c.import {
+                Some(i) => json!({ "import": i }),
+                None => serde_json::to_value(&c.data)?,
+            },
             "detector" => json!({ "config": c.detector, "device": self.device }),
             "variants" => serde_json::to_value(&c.compress)?,
             "pareto" => serde_json::to_value(&c.pareto)?,
@@ -205,7 +208,7 @@ impl Ctx {
             "evaluation" => serde_json::to_value(&c.evaluation)?,
             "budget" => json!({
                 "budget": c.budget,
-                "heldout": c.heldout,
+                "heldout": c.import.is_none().then_some(&c.heldout),
                 "evaluation": c.evaluation,
             }),
             "bundle" => json!({
@@ -225,7 +228,11 @@ impl Ctx {
     fn config_file(&self, name: &str) -> anyhow::Result<Option<PathBuf>> {
         let value = match name {
             "detector" => serde_json::to_value(&self.config.detector)?,
-            "data" | "variants" | "policy" | "evaluation" => self.section(name)?,
+            "data" => match &self.config.import {
+                Some(i) => serde_json::to_value(i)?,
+                None => self.section(name)?,
+            },
+            "variants" | "policy" | "evaluation" => self.section(name)?,
             "budget" => serde_json::to_value(&self.config.budget)?,
             _ => return Ok(None),
         };
@@ -368,10 +375,15 @@ impl Ctx {
         Ok(match name {
             "data" => {
                 let dataset = out.join("dataset");
+                let make = if c.import.is_some() {
+                    "import"
+                } else {
+                    "generate"
+                };
                 vec![
                     self.frugal(&self.quiet(vec![
                         s("data"),
-                        s("generate"),
+                        s(make),
                         s("--config"),
                         cfg(),
                         s("--out"),
@@ -497,6 +509,19 @@ impl Ctx {
                 vec![self.frugal(&a)?]
             }
             "evaluation" => vec![self.frugal(&self.policy_args("eval", out, cfg()))?],
+            "budget" if c.import.is_some() => {
+                // imported footage: the test part is the held-out set
+                let eval_cfg = self.run.join("config/evaluation.json");
+                vec![
+                    self.frugal(
+                        &[
+                            self.policy_args("budget", out, cfg()),
+                            vec![s("--eval-config"), arg(&eval_cfg)],
+                        ]
+                        .concat(),
+                    )?,
+                ]
+            }
             "budget" => {
                 let held = out.join("heldout");
                 let held_cfg = self.run.join("config/heldout.json");
@@ -546,7 +571,13 @@ impl Ctx {
                     self.frugal(&[s("bundle"), s("verify"), arg(out)])?,
                 ]
             }
-            "flights" => self.flights(out)?,
+            "flights" => match self.flights_skipped()? {
+                Some(why) => {
+                    std::fs::write(out.join("skipped.txt"), format!("{why}\n"))?;
+                    Vec::new()
+                }
+                None => self.flights(out)?,
+            },
             other => bail!("no stage named {other}"),
         })
     }
@@ -658,6 +689,31 @@ impl Ctx {
                 v.name
             ),
         }
+    }
+
+    /// Why the maze flights cannot run on this run's data, if they cannot: the maze
+    /// simulator draws the synthetic signs and acts on their meanings, so the detector
+    /// must know those classes.
+    fn flights_skipped(&self) -> anyhow::Result<Option<String>> {
+        if self.config.import.is_none() {
+            return Ok(None);
+        }
+        let manifest = frugal_data::dataset::read_manifest(&self.dir("data").join("dataset"))?;
+        let signs = frugal_data::classes();
+        if manifest.classes.len() == signs.len()
+            && manifest
+                .classes
+                .iter()
+                .zip(&signs)
+                .all(|(a, b)| a.name == b.name)
+        {
+            return Ok(None);
+        }
+        let names: Vec<&str> = manifest.classes.iter().map(|c| c.name.as_str()).collect();
+        Ok(Some(format!(
+            "no maze flights: the maze simulator shows the ten synthetic signs and acts on their meanings, and this run's detector knows other classes ({}); import with `classes = \"signs\"` to fly",
+            names.join(", ")
+        )))
     }
 
     /// Static and adaptive flights over the same mazes and seeds, and their
