@@ -540,6 +540,37 @@ pub(crate) fn collect_videos(
     Ok(videos.into_values().collect())
 }
 
+/// The [`Source`] of an import.
+pub(crate) fn imported(format: &str, input: &Path, counts: ImportCounts) -> Source {
+    Source::Imported {
+        format: format.to_owned(),
+        from: input.display().to_string(),
+        counts,
+    }
+}
+
+/// Write the metadata of an imported dataset into its partial folder and move it to
+/// `out`.
+pub(crate) fn finish(
+    partial: PartialDir,
+    out: &Path,
+    classes: Vec<crate::ClassInfo>,
+    videos: Vec<VideoMeta>,
+    frames: Vec<FrameRecord>,
+    source: Source,
+) -> Result<Dataset, DataError> {
+    let mut dataset = Dataset {
+        root: partial.path().to_owned(),
+        classes,
+        videos,
+        frames,
+    };
+    dataset.write_metadata(partial.path(), source)?;
+    partial.commit()?;
+    dataset.root = out.to_owned();
+    Ok(dataset)
+}
+
 /// Import a dataset into `out` (written to `<out>.partial-XXXX`, then swapped in).
 /// Images are decoded, checked against their annotations and stored as PNG frames.
 pub fn import(opts: &ImportOptions, out: &Path) -> Result<Dataset, DataError> {
@@ -647,23 +678,8 @@ pub fn import(opts: &ImportOptions, out: &Path) -> Result<Dataset, DataError> {
             fps: None,
         }
     })?;
-    let mut dataset = Dataset {
-        root: dir.clone(),
-        classes,
-        videos,
-        frames,
-    };
-    dataset.write_metadata(
-        &dir,
-        Source::Imported {
-            format: opts.format.name().to_owned(),
-            from: opts.input.display().to_string(),
-            counts,
-        },
-    )?;
-    partial.commit()?;
-    dataset.root = out.to_owned();
-    Ok(dataset)
+    let source = imported(opts.format.name(), &opts.input, counts);
+    finish(partial, out, classes, videos, frames, source)
 }
 
 fn convert(

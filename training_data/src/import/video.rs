@@ -23,7 +23,7 @@ use super::{ImportCounts, ImportOptions, collect_videos, hashed_split, place_box
 use crate::annotations::{self, AnnotatedVideo, AnnotationFormat, ReadOptions};
 use crate::dataset::PartialDir;
 use crate::media::{DecodedFrame, FrameSource};
-use crate::{ClassId, DataError, Dataset, FrameRecord, Object, Source, Split, VideoMeta};
+use crate::{ClassId, DataError, Dataset, FrameRecord, Object, Split, VideoMeta};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -173,23 +173,8 @@ pub(crate) fn import_video(
     }
     let _ = std::fs::remove_dir_all(dir.join("staging"));
     let videos = collect_videos(&frames, &opts.input, |f| metas[f.video as usize].clone())?;
-    let mut dataset = Dataset {
-        root: dir.clone(),
-        classes,
-        videos,
-        frames,
-    };
-    dataset.write_metadata(
-        &dir,
-        Source::Imported {
-            format: format.name().to_owned(),
-            from: opts.input.display().to_string(),
-            counts,
-        },
-    )?;
-    partial.commit()?;
-    dataset.root = out.to_owned();
-    Ok(dataset)
+    let source = super::imported(format.name(), &opts.input, counts);
+    super::finish(partial, out, classes, videos, frames, source)
 }
 
 /// Consecutive parts of a video's frames: `fractions` of its frames for train, val and
