@@ -85,9 +85,9 @@ fn tud_campus_runs_every_stage_to_a_verified_bundle_and_skips_the_maze_flights()
     assert!(report.contains("Pareto"), "the report covers the run");
 }
 
-/// The tiny synthetic set exported as COCO, with its categories renamed by `rename`
-/// (category id, annotation id) → class name, and the category list rebuilt.
-fn coco_with_classes(dir: &Path, rename: impl Fn(u64, u64) -> String) -> PathBuf {
+/// The tiny synthetic set generated under `dir` and exported as COCO; returns the
+/// annotation file (frames beside it).
+fn tiny_coco(dir: &Path) -> PathBuf {
     let data = dir.join("synthetic");
     tiny_dataset(&data);
     let coco = dir.join("coco");
@@ -101,7 +101,13 @@ fn coco_with_classes(dir: &Path, rename: impl Fn(u64, u64) -> String) -> PathBuf
         p(&coco),
     ])
     .expect("export");
-    let path = coco.join("annotations.json");
+    coco.join("annotations.json")
+}
+
+/// The tiny synthetic set exported as COCO, with its categories renamed by `rename`
+/// (category id, annotation id) → class name, and the category list rebuilt.
+fn coco_with_classes(dir: &Path, rename: impl Fn(u64, u64) -> String) -> PathBuf {
+    let path = tiny_coco(dir);
     let mut v = json(&path);
     let mut names: Vec<String> = Vec::new();
     for a in v["annotations"].as_array_mut().expect("annotations") {
@@ -176,21 +182,9 @@ fn user_class_lists_of_3_and_37_classes_train_evaluate_export_and_bundle() {
 #[test]
 fn full_hd_frames_train_and_evaluate_at_a_smaller_input_with_boxes_in_source_pixels() {
     let tmp = tempfile::tempdir().expect("tempdir");
-    let data = tmp.path().join("synthetic");
-    tiny_dataset(&data);
-    let coco = tmp.path().join("coco");
-    frugal(&[
-        "data",
-        "export",
-        "--format",
-        "coco",
-        p(&data),
-        "--out",
-        p(&coco),
-    ])
-    .expect("export");
+    let path = tiny_coco(tmp.path());
+    let coco = path.parent().expect("coco folder").to_owned();
     // every frame enlarged to 1920×1080 and every box with it
-    let path = coco.join("annotations.json");
     let mut v = json(&path);
     let (mut sx, mut sy) = (0.0, 0.0);
     for img in v["images"].as_array_mut().expect("images") {

@@ -443,8 +443,9 @@ pub fn compress(opts: &CompressOptions) -> Result<Vec<VariantRecord>, ModelError
         ModelError::Data(format!("{}: the train split is empty", opts.data.display()))
     })?;
     // the base model's input size (trained on these frames), else the frames' own
-    let full = FasterRcnn::load_dir(&opts.model, Device::Cpu)?
-        .config()
+    // (the saved config, not the weights: the loop below loads the model itself)
+    let full = crate::config::Config::load(&opts.model.join("config.json"))?
+        .model
         .input_size
         .map_or((first.height as usize, first.width as usize), |[w, h]| {
             (h, w)

@@ -184,11 +184,14 @@ fn cut(frames: Vec<Written>, fractions: [f64; 3]) -> Vec<(Split, Vec<Written>)> 
     let total: f64 = fractions.iter().sum();
     let train = ((n as f64 * fractions[0] / total).round() as usize).min(n);
     let val = ((n as f64 * fractions[1] / total).round() as usize).min(n - train);
-    let mut rest = frames;
-    let mut test = rest.split_off(train + val);
-    let val_part = rest.split_off(train);
-    let mut parts = vec![(Split::Train, rest), (Split::Val, val_part)];
-    parts.push((Split::Test, std::mem::take(&mut test)));
+    let mut train_part = frames;
+    let test_part = train_part.split_off(train + val);
+    let val_part = train_part.split_off(train);
+    let mut parts = vec![
+        (Split::Train, train_part),
+        (Split::Val, val_part),
+        (Split::Test, test_part),
+    ];
     parts.retain(|(_, p)| !p.is_empty());
     parts
 }
@@ -295,7 +298,7 @@ fn read_video(
             counts.ignored_boxes += c.ignored_boxes;
             written.push(w);
         }
-        bar.inc(written.len() as u64 - bar.position());
+        bar.set_position(written.len() as u64);
         Ok(())
     };
     match source {
