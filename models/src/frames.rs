@@ -53,6 +53,7 @@ pub fn detect_frames(
         out.push(ImageResult {
             detections: model.detect(frame),
             truth: frame_truth(f),
+            ignore: f.ignore.clone(),
         });
     }
     Ok(out)

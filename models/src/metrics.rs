@@ -5,7 +5,12 @@
 //!
 //! Matching follows COCO: per class, detections are taken by descending score (stable
 //! over the image order) and each takes the unmatched ground-truth box of its class in
-//! its image with the highest IoU, if that IoU is at least the threshold.
+//! its image with the highest IoU, if that IoU is at least the threshold. A detection
+//! that takes no box but lies in an ignore region of its class (a COCO crowd) is
+//! excused as pycocotools excuses it: covered by the region for at least the threshold
+//! of its own area (intersection over the detection's area), it counts neither as a
+//! true nor as a false positive; ignore regions are never missed.
+pub use frugal_data::IgnoreRegion;
 use frugal_runtime::{BBox, ClassId, Detection};
 use serde::Serialize;
 
@@ -25,6 +30,8 @@ pub struct ImageResult {
     pub detections: Vec<Detection>,
     /// What is there.
     pub truth: Vec<Truth>,
+    /// Where detections are not scored.
+    pub ignore: Vec<IgnoreRegion>,
 }
 
 /// How precision is interpolated over recall.
@@ -36,16 +43,34 @@ pub enum Interpolation {
     Coco101,
 }
 
+/// What [`match_image`] found.
+struct Matching {
+    /// `(det, truth, iou)`.
+    pairs: Vec<(usize, usize, f32)>,
+    /// Detections that took no box but lie in an ignore region.
+    excused: Vec<usize>,
+}
+
+impl Matching {
+    fn scored(&self, d: usize) -> bool {
+        !self.excused.contains(&d)
+    }
+}
+
 /// Greedy COCO matching of `dets` (indices into `image.detections`, sorted by score)
-/// against the truth of class `class` (or any class when `None`): `(det, truth, iou)`.
+/// against the truth of class `class` (or any class when `None`), then the unmatched
+/// ones against the ignore regions of that class.
 fn match_image(
     image: &ImageResult,
     dets: &[usize],
     class: Option<ClassId>,
     iou_thr: f32,
-) -> Vec<(usize, usize, f32)> {
+) -> Matching {
     let mut used = vec![false; image.truth.len()];
-    let mut out = Vec::new();
+    let mut out = Matching {
+        pairs: Vec::new(),
+        excused: Vec::new(),
+    };
     for &d in dets {
         let db = image.detections[d].bbox;
         let mut best: Option<(usize, f32)> = None;
@@ -60,10 +85,28 @@ fn match_image(
         }
         if let Some((g, iou)) = best {
             used[g] = true;
-            out.push((d, g, iou));
+            out.pairs.push((d, g, iou));
+        } else if image.ignore.iter().any(|r| {
+            let applies = match (class, r.class) {
+                (Some(c), Some(rc)) => c == rc,
+                _ => true,
+            };
+            applies && covered(&db, &r.bbox) >= iou_thr
+        }) {
+            out.excused.push(d);
         }
     }
     out
+}
+
+/// The share of `det`'s area inside `region` (pycocotools' IoU against a crowd).
+fn covered(det: &BBox, region: &BBox) -> f32 {
+    let area = det.area();
+    if area > 0.0 {
+        det.intersection(region).area() / area
+    } else {
+        0.0
+    }
 }
 
 /// Average precision of one class at IoU `iou_thr`; `None` when the class has no
@@ -89,8 +132,11 @@ pub fn average_precision(
             .collect();
         dets.sort_by(|&a, &b| im.detections[b].score.total_cmp(&im.detections[a].score));
         let matched = match_image(im, &dets, Some(class), iou_thr);
-        for &d in &dets {
-            scored.push((im.detections[d].score, matched.iter().any(|m| m.0 == d)));
+        for &d in dets.iter().filter(|&&d| matched.scored(d)) {
+            scored.push((
+                im.detections[d].score,
+                matched.pairs.iter().any(|m| m.0 == d),
+            ));
         }
     }
     scored.sort_by(|a, b| b.0.total_cmp(&a.0)); // stable: ties keep image order
@@ -183,8 +229,9 @@ pub fn image_counts(image: &ImageResult, iou_thr: f32, score_thr: f32) -> (usize
                 .score
                 .total_cmp(&image.detections[a].score)
         });
-        n_det += dets.len();
-        tp += match_image(image, &dets, Some(c), iou_thr).len();
+        let m = match_image(image, &dets, Some(c), iou_thr);
+        n_det += dets.len() - m.excused.len();
+        tp += m.pairs.len();
     }
     (tp, n_det - tp, image.truth.len() - tp)
 }
@@ -222,6 +269,7 @@ pub fn evaluate(
                 .collect();
             dets.sort_by(|&a, &b| im.detections[b].score.total_cmp(&im.detections[a].score));
             iou_sum += match_image(im, &dets, Some(c), iou_thr)
+                .pairs
                 .iter()
                 .map(|m| f64::from(m.2))
                 .sum::<f64>();
@@ -231,8 +279,9 @@ pub fn evaluate(
             .filter(|&i| im.detections[i].score >= score_thr)
             .collect();
         dets.sort_by(|&a, &b| im.detections[b].score.total_cmp(&im.detections[a].score));
-        let m = match_image(im, &dets, None, iou_thr);
-        for &(d, g, _) in &m {
+        let matching = match_image(im, &dets, None, iou_thr);
+        let m = &matching.pairs;
+        for &(d, g, _) in m {
             let (tc, pc) = (im.truth[g].class as usize, im.detections[d].class as usize);
             if tc < k && pc < k {
                 confusion[tc][pc] += 1;
@@ -243,7 +292,7 @@ pub fn evaluate(
                 confusion[t.class as usize][k] += 1;
             }
         }
-        for &d in &dets {
+        for &d in dets.iter().filter(|&&d| matching.scored(d)) {
             if !m.iter().any(|x| x.0 == d) && (im.detections[d].class as usize) < k {
                 confusion[k][im.detections[d].class as usize] += 1;
             }
@@ -307,10 +356,12 @@ mod tests {
             ImageResult {
                 detections: vec![det(0.0, 0.9, 0), det(50.0, 0.8, 0)],
                 truth: vec![truth(0.0, 0), truth(100.0, 0)],
+                ignore: Vec::new(),
             },
             ImageResult {
                 detections: vec![det(1.0, 0.7, 0), det(30.0, 0.6, 0)],
                 truth: vec![truth(0.0, 0)],
+                ignore: Vec::new(),
             },
         ];
         let ap = average_precision(&images, 0, 0.5, Interpolation::AllPoint).unwrap();
@@ -340,6 +391,7 @@ mod tests {
         let images = vec![ImageResult {
             detections: vec![det(0.0, 0.9, 1)],
             truth: vec![truth(0.0, 0)],
+            ignore: Vec::new(),
         }];
         let s = evaluate(&images, 2, 0.5, 0.5, Interpolation::AllPoint);
         assert_eq!(s.map, 0.0);
@@ -355,9 +407,59 @@ mod tests {
         let images = vec![ImageResult {
             detections: vec![det(0.0, 0.9, 0), det(40.0, 0.8, 1)],
             truth: vec![truth(0.0, 0), truth(40.0, 1)],
+            ignore: Vec::new(),
         }];
         for i in [Interpolation::AllPoint, Interpolation::Coco101] {
             assert!((evaluate(&images, 2, 0.5, 0.5, i).map - 1.0).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn detections_in_an_ignore_region_are_excused_only_for_its_classes() {
+        // class 0 object at x 0; a crowd of class 0 over x 100..140; a region of any
+        // class over x 200..240
+        let im = |detections| ImageResult {
+            detections,
+            truth: vec![truth(0.0, 0)],
+            ignore: vec![
+                IgnoreRegion {
+                    class: Some(0),
+                    bbox: BBox::new(100.0, 0.0, 140.0, 10.0),
+                },
+                IgnoreRegion {
+                    class: None,
+                    bbox: BBox::new(200.0, 0.0, 240.0, 10.0),
+                },
+            ],
+        };
+        // a class-0 box wholly in the crowd, one 60 % in, one 40 % in; class 1 in
+        // the crowd; class 1 in the any-class region
+        let images = vec![im(vec![
+            det(0.0, 0.9, 0),
+            det(110.0, 0.8, 0),
+            det(134.0, 0.7, 0),
+            det(136.0, 0.6, 0),
+            det(120.0, 0.5, 1),
+            det(220.0, 0.4, 1),
+        ])];
+        // excused: 0.8 and 0.7 (class 0 in its crowd, ≥ 50 % covered) and 0.4 (any
+        // class); false alarms: 0.6 (40 % covered) and 0.5 (another class)
+        assert_eq!(image_counts(&images[0], 0.5, 0.0), (1, 2, 0));
+        let s = evaluate(&images, 2, 0.5, 0.0, Interpolation::AllPoint);
+        assert_eq!(
+            (s.true_positives, s.false_positives, s.false_negatives),
+            (1, 2, 0)
+        );
+        // AP of class 0: TP at 0.9, then the one false alarm → 1
+        assert_eq!(
+            average_precision(&images, 0, 0.5, Interpolation::AllPoint),
+            Some(1.0)
+        );
+        // regions are never missed, and an image with only a region has no truth
+        let empty = ImageResult {
+            truth: Vec::new(),
+            ..im(Vec::new())
+        };
+        assert_eq!(image_counts(&empty, 0.5, 0.0), (0, 0, 0));
     }
 }

@@ -116,6 +116,7 @@ fn tiny_config_overfits_a_handful_of_images() {
         .map(|(px, truth)| ImageResult {
             detections: model.detect(FrameRef::new(96, 64, px).unwrap()),
             truth: truth.clone(),
+            ignore: Vec::new(),
         })
         .collect();
     let s = evaluate(&results, 3, 0.5, 0.5, Interpolation::AllPoint);
@@ -318,7 +319,8 @@ fn interrupted_training_resumes_to_the_same_weights() {
 }
 
 /// The metric code against pycocotools (COCOeval, iouThrs = [0.5], 101-point
-/// interpolation) on a fixed random case: per-class AP must agree to 1e-9.
+/// interpolation) on a fixed random case with crowd regions (ignore regions) that
+/// some detections fall in: per-class AP must agree to 1e-9.
 #[test]
 fn coco101_ap_matches_pycocotools() {
     use frugal_models::metrics::average_precision;
@@ -380,8 +382,40 @@ fn coco101_ap_matches_pycocotools() {
                 });
             }
         }
+        // a crowd of one class in a third of the images, with detections in and
+        // around it (excused only when of its class and mostly inside)
+        if rng.random_range(0..3) == 0 {
+            let class = rng.random_range(0..3u16);
+            let (x, y) = (
+                rng.random_range(0.0..300.0f32),
+                rng.random_range(0.0..150.0f32),
+            );
+            im.ignore.push(frugal_models::metrics::IgnoreRegion {
+                class: Some(class),
+                bbox: BBox::from_xywh(x, y, 60.0, 50.0),
+            });
+            for _ in 0..rng.random_range(1..4) {
+                score_id += 1;
+                let score = rng.random_range(0.0..1.0f32) * 0.5 + (score_id as f32) * 1e-4;
+                im.detections.push(Detection {
+                    bbox: BBox::from_xywh(
+                        x + rng.random_range(-20.0..50.0),
+                        y + rng.random_range(-20.0..40.0),
+                        20.0,
+                        20.0,
+                    ),
+                    score,
+                    class: if rng.random_range(0..4) == 0 {
+                        (class + 1) % 3
+                    } else {
+                        class
+                    },
+                });
+            }
+        }
         images.push(im);
     }
+    assert!(images.iter().filter(|im| !im.ignore.is_empty()).count() >= 5);
     let dir = tempfile::tempdir().unwrap();
     let (mut gts, mut dts, mut imgs) = (Vec::new(), Vec::new(), Vec::new());
     for (i, im) in images.iter().enumerate() {
@@ -391,6 +425,13 @@ fn coco101_ap_matches_pycocotools() {
             gts.push(
                 serde_json::json!({"id": gts.len() + 1, "image_id": i, "category_id": t.class,
                 "bbox": [b.x1, b.y1, b.width(), b.height()], "area": b.area(), "iscrowd": 0}),
+            );
+        }
+        for r in &im.ignore {
+            let b = r.bbox;
+            gts.push(
+                serde_json::json!({"id": gts.len() + 1, "image_id": i, "category_id": r.class,
+                "bbox": [b.x1, b.y1, b.width(), b.height()], "area": b.area(), "iscrowd": 1}),
             );
         }
         for d in &im.detections {
@@ -438,5 +479,20 @@ fn coco101_ap_matches_pycocotools() {
     assert!(
         nontrivial >= 2,
         "the case should exercise partial precision: {v}"
+    );
+    // the crowds matter: without them some class's AP changes
+    let plain: Vec<ImageResult> = images
+        .iter()
+        .map(|im| ImageResult {
+            ignore: Vec::new(),
+            ..im.clone()
+        })
+        .collect();
+    assert!(
+        (0..3u16).any(|c| {
+            average_precision(&plain, c, 0.5, Interpolation::Coco101)
+                != average_precision(&images, c, 0.5, Interpolation::Coco101)
+        }),
+        "no crowd changed any AP"
     );
 }

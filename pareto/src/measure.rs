@@ -315,6 +315,7 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
                         bbox: o.bbox,
                     })
                     .collect(),
+                ignore: f.ignore.clone(),
             });
         }
         if opts.progress && (fi + 1) % 20 == 0 {
@@ -583,6 +584,7 @@ mod tests {
                 class: 0,
                 bbox: truth,
             }],
+            ignore: Vec::new(),
         }
     }
 

@@ -195,6 +195,8 @@ mod tests {
                     index: i,
                     truth,
                     detections: vec![vec![cheap], vec![good]],
+                    ignore: Vec::new(),
+                    time_s: None,
                 }
             })
             .collect();

@@ -32,7 +32,7 @@
 //! for i in 0..20 {
 //!     frames.frames.insert((0, i), RgbFrame { width: 64, height: 48, rgb: vec![0; 64 * 48 * 3] });
 //!     let truth = vec![Det { class: 0, score: 1.0, bbox: [10.0, 10.0, 30.0, 30.0] }];
-//!     logs.push(FrameLog { index: i, truth, detections: vec![] });
+//!     logs.push(FrameLog { index: i, truth, detections: vec![], ignore: vec![], time_s: None });
 //! }
 //! let video = VideoLog { id: 0, clutter: Clutter::Low, light: Light::Normal,
 //!     split: Split::Train, width: 64, height: 48, frames: logs };

@@ -4,7 +4,7 @@
 
 use crate::error::{PolicyError, Result};
 use crate::variants::{Buckets, FamilyInfo, FrameContext, VariantInfo, VariantSet};
-use frugal_data::{Clutter, Dataset, Light, Split};
+use frugal_data::{Clutter, Dataset, IgnoreRegion, Light, Split};
 use frugal_runtime::{BBox, ClassId, Detection, FrameRef};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -64,6 +64,34 @@ pub struct FrameLog {
     pub truth: Vec<Det>,
     /// `detections[v]`: variant `v`'s detections, best first (empty before recording).
     pub detections: Vec<Vec<Det>>,
+    /// Ignore regions (see [`frugal_data::IgnoreRegion`]): detections there are not
+    /// scored.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub ignore: Vec<IgnoreBox>,
+    /// Presentation time in seconds from the start of the video, when the source gives
+    /// real time (imported video): the streaming clock then runs on it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_s: Option<f64>,
+}
+
+/// An ignore region in the log: the class whose detections it excuses (`None`: any)
+/// and its box `[x1, y1, x2, y2]`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct IgnoreBox {
+    /// Class, or any.
+    pub class: Option<ClassId>,
+    /// Box corners.
+    pub bbox: [f32; 4],
+}
+
+impl IgnoreBox {
+    /// The region.
+    pub fn region(&self) -> IgnoreRegion {
+        IgnoreRegion {
+            class: self.class,
+            bbox: BBox::new(self.bbox[0], self.bbox[1], self.bbox[2], self.bbox[3]),
+        }
+    }
 }
 
 impl FrameLog {
@@ -93,6 +121,19 @@ pub struct VideoLog {
     pub height: u32,
     /// Frames in order.
     pub frames: Vec<FrameLog>,
+}
+
+impl VideoLog {
+    /// When each frame reaches the perception (ms from the first): the frames' own
+    /// times when every frame has one (imported video), else one frame every
+    /// `1 / fps` seconds.
+    pub fn arrivals_ms(&self, fps: f64) -> Vec<f64> {
+        let times: Option<Vec<f64>> = self.frames.iter().map(|f| f.time_s).collect();
+        match times {
+            Some(t) if !t.is_empty() => t.iter().map(|s| (s - t[0]) * 1000.0).collect(),
+            _ => crate::stream::arrivals(self.frames.len(), fps),
+        }
+    }
 }
 
 /// The whole log.
@@ -329,6 +370,15 @@ impl<'a> DatasetFrames<'a> {
                             })
                             .collect(),
                         detections: Vec::new(),
+                        ignore: f
+                            .ignore
+                            .iter()
+                            .map(|r| IgnoreBox {
+                                class: r.class,
+                                bbox: [r.bbox.x1, r.bbox.y1, r.bbox.x2, r.bbox.y2],
+                            })
+                            .collect(),
+                        time_s: f.time_s,
                     })
                     .collect(),
             });

@@ -47,15 +47,21 @@ pub(crate) fn reported(log: &ReplayLog, video: &VideoLog, f: usize, v: usize) ->
         .collect()
 }
 
-pub(crate) fn truth(video: &VideoLog, f: usize) -> Vec<Truth> {
-    video.frames[f]
-        .truth
-        .iter()
-        .map(|d| Truth {
-            class: d.class,
-            bbox: d.bbox(),
-        })
-        .collect()
+/// What frame `f` of `video` holds (its objects and ignore regions), no detections.
+pub(crate) fn ground_truth(video: &VideoLog, f: usize) -> ImageResult {
+    let frame = &video.frames[f];
+    ImageResult {
+        detections: Vec::new(),
+        truth: frame
+            .truth
+            .iter()
+            .map(|d| Truth {
+                class: d.class,
+                bbox: d.bbox(),
+            })
+            .collect(),
+        ignore: frame.ignore.iter().map(|r| r.region()).collect(),
+    }
 }
 
 /// True positives, false positives and false negatives of variant `v`'s reported
@@ -71,7 +77,9 @@ fn frame_counts(
     iou: f32,
     min_px: f32,
 ) -> (usize, usize, usize) {
-    let (counted, ignored): (Vec<Truth>, Vec<Truth>) = truth(video, f)
+    let gt = ground_truth(video, f);
+    let (counted, ignored): (Vec<Truth>, Vec<Truth>) = gt
+        .truth
         .into_iter()
         .partition(|t| t.bbox.height() >= min_px || t.bbox.height().is_nan());
     let mut detections = reported(log, video, f, v);
@@ -82,6 +90,7 @@ fn frame_counts(
     let im = ImageResult {
         detections,
         truth: counted,
+        ignore: gt.ignore,
     };
     image_counts(&im, iou, f32::NEG_INFINITY)
 }
@@ -132,7 +141,7 @@ pub fn most_accurate(log: &ReplayLog, iou: f32) -> usize {
             .flat_map(|video| {
                 (0..video.frames.len()).map(move |f| ImageResult {
                     detections: reported(log, video, f, v),
-                    truth: truth(video, f),
+                    ..ground_truth(video, f)
                 })
             })
             .collect();

@@ -22,7 +22,7 @@
 //! peer that applies the same rule and scores with pycocotools.
 
 use crate::error::Result;
-use frugal_models::metrics::{ImageResult, Interpolation, Truth, average_precision};
+use frugal_models::metrics::{ImageResult, Interpolation, average_precision};
 use frugal_runtime::{ClassId, Detection};
 use serde::{Deserialize, Serialize};
 
@@ -140,7 +140,7 @@ pub fn latest_outputs(arrivals_ms: &[f64], run: &StreamRun) -> Vec<Option<usize>
 /// output [`latest_outputs`] picks for it.
 pub fn streaming_images(
     arrivals_ms: &[f64],
-    truth: &[Vec<Truth>],
+    truth: &[ImageResult],
     run: &StreamRun,
 ) -> Vec<ImageResult> {
     latest_outputs(arrivals_ms, run)
@@ -148,7 +148,8 @@ pub fn streaming_images(
         .zip(truth)
         .map(|(o, t)| ImageResult {
             detections: o.map_or_else(Vec::new, |o| run.outputs[o].shown.clone()),
-            truth: t.clone(),
+            truth: t.truth.clone(),
+            ignore: t.ignore.clone(),
         })
         .collect()
 }
@@ -305,12 +306,13 @@ mod tests {
         // a box moving 10 px per frame; a perfect detector that takes 2.5 frame periods
         let n = 30;
         let arr = arrivals(n, 30.0);
-        let truth: Vec<Vec<Truth>> = (0..n)
-            .map(|f| {
-                vec![Truth {
+        let truth: Vec<ImageResult> = (0..n)
+            .map(|f| ImageResult {
+                truth: vec![frugal_models::metrics::Truth {
                     class: 0,
                     bbox: det(10.0 * f as f32).bbox,
-                }]
+                }],
+                ..ImageResult::default()
             })
             .collect();
         let perfect = |f: usize| Ok((vec![det(10.0 * f as f32)], 2.5 * 1000.0 / 30.0));
@@ -319,7 +321,7 @@ mod tests {
             .enumerate()
             .map(|(f, t)| ImageResult {
                 detections: vec![det(10.0 * f as f32)],
-                truth: t.clone(),
+                ..t.clone()
             })
             .collect();
         let (ap50, ap) = sap(&offline, 1);

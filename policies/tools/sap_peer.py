@@ -3,10 +3,12 @@
 Reads timestamped outputs and ground truth as JSON on stdin:
 
     {"categories": [0, 1, ...],
-     "videos": [{"frames": [{"time_ms": t, "truth": [{"category_id": c, "bbox": [x, y, w, h]}]}],
+     "videos": [{"frames": [{"time_ms": t, "truth": [{"category_id": c, "bbox": [x, y, w, h]}],
+                             "ignore": [{"category_id": c, "bbox": [x, y, w, h]}]}],
                  "outputs": [{"finish_ms": t, "detections": [{"category_id": c, "bbox": [x, y, w, h], "score": s}]}]}]}
 
-pairs every ground-truth frame with the latest output whose finish_ms <= the frame's
+(`ignore`, optional: crowd regions, given to COCOeval as `iscrowd: 1`), pairs every
+ground-truth frame with the latest output whose finish_ms <= the frame's
 time_ms (of outputs finishing at the same time, the later one listed), and scores the
 pairs with pycocotools' COCOeval (bbox, area "all", 100 detections per image). Prints
 {"sap50": AP@0.5, "sap": AP@[.5:.95]} as JSON with full precision.
@@ -35,6 +37,11 @@ def main():
                 annotations.append({"id": len(annotations) + 1, "image_id": image_id,
                                     "category_id": t["category_id"], "bbox": [x, y, w, h],
                                     "area": w * h, "iscrowd": 0})
+            for t in frame.get("ignore", []):
+                x, y, w, h = t["bbox"]
+                annotations.append({"id": len(annotations) + 1, "image_id": image_id,
+                                    "category_id": t["category_id"], "bbox": [x, y, w, h],
+                                    "area": w * h, "iscrowd": 1})
             used = None
             for o in outputs:
                 if o["finish_ms"] <= frame["time_ms"]:

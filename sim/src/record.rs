@@ -98,6 +98,7 @@ impl FootageRecorder {
             index: video.frames,
             split: Split::Val,
             objects,
+            ignore: Vec::new(),
             time_s: None,
         });
         video.frames += 1;

@@ -53,7 +53,7 @@ fn tud_campus_runs_every_stage_to_a_verified_bundle_and_skips_the_maze_flights()
             "format = \"mot\"\nannotations = {:?}\nfps = 25.0\ntime_split = [0.7, 0.15, 0.15]\nactions = {{ pedestrian = \"wait\" }}",
             p(&gt)
         ),
-        "[detector.model]\ninput_size = [160, 120]\nanchor_sizes = [24.0, 48.0]\nanchor_ratios = [2.0]\n[budget]\nfps = 25.0\n",
+        "[detector.model]\ninput_size = [160, 120]\nanchor_sizes = [24.0, 48.0]\nanchor_ratios = [2.0]\n",
     );
     let out = tmp.path().join("run");
     run(&config, &out, None);
@@ -83,6 +83,74 @@ fn tud_campus_runs_every_stage_to_a_verified_bundle_and_skips_the_maze_flights()
     assert!(why.contains("pedestrian") && why.contains("signs"), "{why}");
     let report = std::fs::read_to_string(out.join("report.md")).expect("report");
     assert!(report.contains("Pareto"), "the report covers the run");
+
+    // the imported set exports as COCO with videos and MOT, and both import back
+    let data = out.join("data/dataset");
+    let cv = tmp.path().join("export-cv");
+    frugal(&[
+        "data",
+        "export",
+        "--format",
+        "coco-video",
+        p(&data),
+        "--out",
+        p(&cv),
+    ])
+    .expect("export coco-video");
+    let back = tmp.path().join("back-cv");
+    frugal(&[
+        "data",
+        "import",
+        "--quiet",
+        "--format",
+        "coco-video",
+        p(&cv.join("annotations.json")),
+        "--out",
+        p(&back),
+    ])
+    .expect("import coco-video");
+    let counts = &json(&back.join("manifest.json"))["counts"];
+    let total = |what: &str| -> u64 {
+        ["train", "val", "test"]
+            .iter()
+            .map(|s| counts[s][what].as_u64().expect("count"))
+            .sum()
+    };
+    assert_eq!((total("frames"), total("objects")), (71, 359));
+    let mot = tmp.path().join("export-mot");
+    frugal(&[
+        "data",
+        "export",
+        "--format",
+        "mot",
+        "--split",
+        "test",
+        p(&data),
+        "--out",
+        p(&mot),
+    ])
+    .expect("export mot");
+    let seqs: Vec<PathBuf> = std::fs::read_dir(&mot)
+        .expect("mot folder")
+        .map(|e| e.expect("entry").path())
+        .collect();
+    assert_eq!(seqs.len(), 1, "one test video: {seqs:?}");
+    let back = tmp.path().join("back-mot");
+    frugal(&[
+        "data",
+        "import",
+        "--quiet",
+        "--format",
+        "mot",
+        p(&seqs[0].join("gt/gt.txt")),
+        "--split",
+        "test",
+        "--out",
+        p(&back),
+    ])
+    .expect("import mot");
+    let counts = &json(&back.join("manifest.json"))["counts"]["test"];
+    assert_eq!(counts["frames"], 10);
 }
 
 /// The tiny synthetic set generated under `dir` and exported as COCO; returns the

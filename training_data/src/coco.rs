@@ -55,7 +55,7 @@ pub struct CocoAnnotation {
     /// `w * h`.
     #[serde(default)]
     pub area: f64,
-    /// Always 0 in frugal's files.
+    /// 1 for a crowd: an ignore region ([`crate::IgnoreRegion`]) of its category.
     #[serde(default)]
     pub iscrowd: u8,
 }
@@ -194,6 +194,7 @@ impl CocoFile {
                 index,
                 split,
                 objects: Vec::new(),
+                ignore: Vec::new(),
                 time_s: img.time,
             });
         }
@@ -220,10 +221,15 @@ impl CocoFile {
                 })?;
             let bbox = ann.to_bbox();
             check_box(path, &record, bbox, frame.width, frame.height)?;
-            frame.objects.push(Object {
-                class: class as crate::ClassId,
-                bbox,
-            });
+            let class = class as crate::ClassId;
+            if ann.iscrowd != 0 {
+                frame.ignore.push(crate::IgnoreRegion {
+                    class: Some(class),
+                    bbox,
+                });
+            } else {
+                frame.objects.push(Object { class, bbox });
+            }
         }
         Ok(frames)
     }

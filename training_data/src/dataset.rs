@@ -149,6 +149,19 @@ pub struct Object {
     pub bbox: BBox,
 }
 
+/// A region where detections are not scored: a crowd (COCO `iscrowd`), a distractor
+/// or a barely visible object (MOT), a `difficult` object (Pascal VOC). Evaluation
+/// counts it neither as a miss when nothing is found there nor as a false alarm when
+/// a detection falls in it (see `frugal_models::metrics`); training does not use it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IgnoreRegion {
+    /// The class whose detections it excuses; `None`: detections of any class (an
+    /// ignore box of a class the dataset does not keep, such as MOT's distractors).
+    pub class: Option<ClassId>,
+    /// Its box (clipped to the frame).
+    pub bbox: BBox,
+}
+
 /// One frame and its annotations.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FrameRecord {
@@ -168,6 +181,8 @@ pub struct FrameRecord {
     pub split: Split,
     /// The signs in it.
     pub objects: Vec<Object>,
+    /// Its ignore regions (imported sets; empty for synthetic frames).
+    pub ignore: Vec<IgnoreRegion>,
     /// Its presentation time in seconds from the start of its video, when the source
     /// gives real time (imported video); otherwise `index / fps` (see
     /// [`Dataset::frame_time`]).
@@ -387,6 +402,23 @@ impl Dataset {
                     f.id,
                     o,
                 ));
+            }
+            // ignore regions are COCO crowds, which excuse detections of their own
+            // category only: a region of any class is one crowd per class
+            for r in &f.ignore {
+                let classes = match r.class {
+                    Some(c) => c..c + 1,
+                    None => 0..self.classes.len() as ClassId,
+                };
+                for class in classes {
+                    let o = Object {
+                        class,
+                        bbox: r.bbox,
+                    };
+                    let mut a = CocoAnnotation::from_object(annotations.len() as u64 + 1, f.id, &o);
+                    a.iscrowd = 1;
+                    annotations.push(a);
+                }
             }
         }
         CocoFile {

@@ -59,6 +59,7 @@ fn render_video(
             index,
             split: plan.split,
             objects: f.objects,
+            ignore: Vec::new(),
             time_s: None,
         });
         pb.inc(1);

@@ -53,15 +53,15 @@ pub mod video;
 pub use classes::{ClassInfo, NavAction, Sign, classes};
 pub use config::{GENERATOR_VERSION, GenConfig, VideoPlan};
 pub use dataset::{
-    Clutter, Counts, DEFAULT_FPS, Dataset, FrameRecord, Light, Manifest, Object, Source, Split,
-    VideoMeta,
+    Clutter, Counts, DEFAULT_FPS, Dataset, FrameRecord, IgnoreRegion, Light, Manifest, Object,
+    Source, Split, VideoMeta,
 };
 pub use error::DataError;
 pub use frugal_runtime::{BBox, ClassId};
 pub use generate::{generate, generate_or_reuse};
 pub use import::{
-    ClassList, ClassMap, Format, ImportCounts, ImportOptions, ImportSettings, export_coco, import,
-    parse_action,
+    ClassList, ClassMap, Format, ImportCounts, ImportOptions, ImportSettings, export_coco,
+    export_video, import, parse_action,
 };
 pub use sign::{SignStyle, render_sign};
 pub use summary::{Summary, summary};

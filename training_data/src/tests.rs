@@ -837,3 +837,238 @@ fn bad_video_imports_name_the_file_and_write_nothing() {
     let err = try_import(&neg, &mp4, "neg");
     assert!(err.contains("neg.txt") && err.contains("line 1"), "{err}");
 }
+
+#[test]
+fn crowds_difficult_objects_and_mot_ignore_boxes_become_ignore_regions() {
+    let ds = tiny();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let f = ds
+        .frames
+        .iter()
+        .find(|f| !f.objects.is_empty())
+        .expect("a frame with a sign");
+    let o = f.objects[0];
+    let b = o.bbox;
+
+    // COCO: the frame's sign plus a crowd of its class
+    let coco = serde_json::json!({
+        "images": [{"id": 7, "file_name": f.file, "width": f.width, "height": f.height}],
+        "annotations": [
+            {"id": 1, "image_id": 7, "category_id": 3, "bbox": [b.x1, b.y1, b.width(), b.height()], "iscrowd": 0},
+            {"id": 2, "image_id": 7, "category_id": 3, "bbox": [1.0, 2.0, 40.0, 30.0], "iscrowd": 1}
+        ],
+        "categories": [{"id": 3, "name": "sign"}]
+    });
+    let json = dir.path().join("crowd.json");
+    std::fs::write(&json, coco.to_string()).expect("write");
+    let mut opts = ImportOptions::new(Format::Coco, &json);
+    opts.images = Some(ds.root.clone());
+    let got = import(&opts, &dir.path().join("coco")).expect("import coco");
+    let frame = &got.frames[0];
+    assert_eq!(frame.objects.len(), 1);
+    assert_eq!(
+        frame.ignore,
+        [IgnoreRegion {
+            class: Some(0),
+            bbox: BBox::new(1.0, 2.0, 41.0, 32.0)
+        }]
+    );
+    let manifest = crate::dataset::read_manifest(&got.root).expect("manifest");
+    let Source::Imported { counts, .. } = manifest.source else {
+        panic!("not an import");
+    };
+    assert_eq!(counts.ignored_boxes, 1);
+    // the dataset's own files and an export keep the region
+    let back = import(
+        &ImportOptions::new(
+            Format::Coco,
+            export_coco(&got, None, &dir.path().join("exp")).expect("export"),
+        ),
+        &dir.path().join("back"),
+    )
+    .expect("reimport");
+    assert_eq!(back.frames[0].ignore, frame.ignore);
+    assert_eq!(
+        Dataset::load(&got.root).expect("load").frames[0].ignore,
+        frame.ignore
+    );
+
+    // VOC: a difficult object
+    let voc = dir.path().join("voc");
+    std::fs::create_dir_all(&voc).expect("mkdir");
+    std::fs::write(
+        voc.join("a.xml"),
+        format!(
+            "<annotation><filename>{}</filename><size><width>{}</width><height>{}</height></size>\
+             <object><name>sign</name><difficult>1</difficult><bndbox><xmin>11</xmin><ymin>21</ymin><xmax>30</xmax><ymax>40</ymax></bndbox></object>\
+             <object><name>sign</name><difficult>0</difficult><bndbox><xmin>{}</xmin><ymin>{}</ymin><xmax>{}</xmax><ymax>{}</ymax></bndbox></object>\
+             </annotation>",
+            f.file.display(),
+            f.width,
+            f.height,
+            b.x1 + 1.0,
+            b.y1 + 1.0,
+            b.x2,
+            b.y2
+        ),
+    )
+    .expect("write");
+    let mut opts = ImportOptions::new(Format::Voc, &voc);
+    opts.images = Some(ds.root.clone());
+    let got = import(&opts, &dir.path().join("voc-out")).expect("import voc");
+    assert_eq!(got.frames[0].objects.len(), 1);
+    assert_eq!(
+        got.frames[0].ignore,
+        [IgnoreRegion {
+            class: Some(0),
+            bbox: BBox::new(10.0, 20.0, 30.0, 40.0)
+        }]
+    );
+
+    // MOT (9 columns): a pedestrian with flag 0 excuses pedestrians; a distractor,
+    // a class the data do not keep, excuses any class
+    if !have_ffmpeg() {
+        return;
+    }
+    let (mp4, _, frames) = synthetic_mp4(ds, dir.path());
+    let mut gt = String::new();
+    for fr in &frames {
+        let n = fr.index + 1;
+        gt +=
+            &format!("{n},1,10,10,20,30,1,1,1\n{n},2,50,10,20,30,0,1,1\n{n},3,90,10,20,30,1,8,1\n");
+    }
+    let gt_path = dir.path().join("gt9.txt");
+    std::fs::write(&gt_path, gt).expect("gt");
+    let mut opts = ImportOptions::new(Format::from_name("mot").expect("mot"), &gt_path);
+    opts.video = Some(mp4);
+    opts.split = Some(Split::Test);
+    let got = import(&opts, &dir.path().join("mot")).expect("import mot");
+    assert_eq!(
+        got.classes
+            .iter()
+            .map(|c| c.name.as_str())
+            .collect::<Vec<_>>(),
+        ["pedestrian"]
+    );
+    for fr in &got.frames {
+        assert_eq!(fr.objects.len(), 1);
+        assert_eq!(
+            fr.ignore,
+            [
+                IgnoreRegion {
+                    class: Some(0),
+                    bbox: BBox::new(50.0, 10.0, 70.0, 40.0)
+                },
+                IgnoreRegion {
+                    class: None,
+                    bbox: BBox::new(90.0, 10.0, 110.0, 40.0)
+                }
+            ]
+        );
+    }
+    // a region of any class is one crowd per class in COCO
+    let coco = got.to_coco(None);
+    assert_eq!(
+        coco.annotations.iter().filter(|a| a.iscrowd == 1).count(),
+        2 * got.frames.len()
+    );
+}
+
+/// Mean absolute pixel difference of two same-sized images (imported video frames are
+/// stored as JPEG at quality 95).
+fn mean_abs_diff(a: &image::RgbImage, b: &image::RgbImage) -> f64 {
+    assert_eq!(a.dimensions(), b.dimensions());
+    let sum: f64 = a
+        .as_raw()
+        .iter()
+        .zip(b.as_raw())
+        .map(|(p, q)| f64::from(p.abs_diff(*q)))
+        .sum();
+    sum / a.as_raw().len() as f64
+}
+
+/// Objects per frame by class name, boxes to 1/100 px.
+fn named_objects(ds: &Dataset, frames: &[&FrameRecord]) -> Vec<Vec<(String, [i32; 4])>> {
+    frames
+        .iter()
+        .map(|f| {
+            f.objects
+                .iter()
+                .map(|o| {
+                    let b = o.bbox;
+                    (
+                        ds.classes[usize::from(o.class)].name.clone(),
+                        [b.x1, b.y1, b.x2, b.y2].map(|v| (v * 100.0).round() as i32),
+                    )
+                })
+                .collect()
+        })
+        .collect()
+}
+
+#[test]
+fn mot_and_coco_video_exports_import_back_with_the_same_frames_and_boxes() {
+    let ds = tiny();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let test: Vec<&FrameRecord> = ds.split(Split::Test).collect();
+    let videos: std::collections::BTreeSet<u32> = test.iter().map(|f| f.video).collect();
+
+    // COCO-video: every test video in one file
+    let json = export_video(
+        ds,
+        Some(Split::Test),
+        annotations::AnnotationFormat::CocoVideo,
+        &dir.path().join("cv"),
+    )
+    .expect("export coco-video");
+    let mut opts = ImportOptions::new(Format::from_name("coco-video").expect("format"), &json);
+    opts.split = Some(Split::Test);
+    let back = import(&opts, &dir.path().join("cv-back")).expect("import coco-video");
+    assert_eq!(back.videos.len(), videos.len());
+    let back_frames: Vec<&FrameRecord> = back.frames.iter().collect();
+    assert_eq!(named_objects(&back, &back_frames), named_objects(ds, &test));
+    for (a, b) in back_frames.iter().zip(&test) {
+        let d = mean_abs_diff(&back.load_rgb(a).expect("a"), &ds.load_rgb(b).expect("b"));
+        assert!(d < 4.0, "frame {}: mean abs difference {d}", b.index);
+    }
+
+    // MOT: one sequence per video, each imported on its own
+    let seqs = export_video(
+        ds,
+        Some(Split::Test),
+        annotations::AnnotationFormat::Mot,
+        &dir.path().join("mot"),
+    )
+    .expect("export mot");
+    for (k, v) in videos.iter().enumerate() {
+        let gt = seqs.join(format!("video{v:04}")).join("gt").join("gt.txt");
+        let mut opts = ImportOptions::new(Format::from_name("mot").expect("mot"), &gt);
+        opts.split = Some(Split::Test);
+        let back = import(&opts, &dir.path().join(format!("mot-back{k}"))).expect("import mot");
+        let want: Vec<&FrameRecord> = test.iter().copied().filter(|f| f.video == *v).collect();
+        let got: Vec<&FrameRecord> = back.frames.iter().collect();
+        assert_eq!(
+            named_objects(&back, &got),
+            named_objects(ds, &want),
+            "video {v}"
+        );
+        // (imported times are kept to the microsecond)
+        assert!((back.frame_time(got[1]) - ds.frame_time(want[1])).abs() <= 1e-6);
+        let d = mean_abs_diff(
+            &back.load_rgb(got[1]).expect("a"),
+            &ds.load_rgb(want[1]).expect("b"),
+        );
+        assert!(d < 4.0, "video {v}: mean abs difference {d}");
+    }
+
+    // a format that cannot be written, and an empty selection, are clear errors
+    let err = export_video(
+        ds,
+        None,
+        annotations::AnnotationFormat::Cvat,
+        &dir.path().join("cvat"),
+    )
+    .expect_err("cvat");
+    assert!(err.to_string().contains("cannot be written"), "{err}");
+    assert!(!dir.path().join("cvat").exists());
+}

@@ -43,8 +43,10 @@ enum DataCommand {
     /// of the video id unless --split is given; a video is cut into train / val / test
     /// parts in time order (--time-split, the default below three videos).
     Import(Box<ImportArgs>),
-    /// Export a dataset as a self-contained COCO folder: annotations.json (category_id =
-    /// class id + 1; images carry video, index, split) and the frames.
+    /// Export a dataset with its frames: as a COCO folder (annotations.json,
+    /// category_id = class id + 1, images carry video, index, split), as MOT Challenge
+    /// sequences (<video>/gt/gt.txt, labels.txt, seqinfo.ini, img1/), or as COCO with
+    /// videos (TAO / YouTube-VIS style annotations.json). Each imports back as it was.
     Export {
         /// Output format.
         #[arg(long, value_enum, default_value = "coco")]
@@ -228,8 +230,12 @@ fn parse_fractions(s: &str) -> Result<[f64; 3], String> {
 
 #[derive(ValueEnum, Debug, Clone, Copy)]
 enum ExportFormat {
-    /// COCO JSON.
+    /// COCO JSON, still images with frugal's extras.
     Coco,
+    /// MOT Challenge sequences, one per video.
+    Mot,
+    /// COCO with videos.
+    CocoVideo,
 }
 
 #[derive(ValueEnum, Debug, Clone, Copy)]
@@ -347,14 +353,23 @@ pub fn run(args: DataArgs) -> anyhow::Result<()> {
             Ok(())
         }
         DataCommand::Export {
-            format: ExportFormat::Coco,
+            format,
             dir,
             out,
             split,
         } => {
+            use frugal_data::annotations::AnnotationFormat;
             let ds = Dataset::load(&dir)?;
-            let json = frugal_data::export_coco(&ds, split, &out)?;
-            println!("wrote {}", json.display());
+            let written = match format {
+                ExportFormat::Coco => frugal_data::export_coco(&ds, split, &out)?,
+                ExportFormat::Mot => {
+                    frugal_data::export_video(&ds, split, AnnotationFormat::Mot, &out)?
+                }
+                ExportFormat::CocoVideo => {
+                    frugal_data::export_video(&ds, split, AnnotationFormat::CocoVideo, &out)?
+                }
+            };
+            println!("wrote {}", written.display());
             Ok(())
         }
         DataCommand::Summary { dir, json } => {

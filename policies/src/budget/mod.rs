@@ -43,8 +43,8 @@ pub use segments::{Segment, video_segments};
 pub use solve::train_budget;
 
 use crate::error::{PolicyError, Result};
-pub(crate) use crate::scoring::{reported, truth};
-use frugal_models::metrics::{ImageResult, Truth, image_counts};
+pub(crate) use crate::scoring::reported;
+use frugal_models::metrics::{ImageResult, image_counts};
 use frugal_runtime::bundle::write::{BudgetSpec, ScheduleSpec};
 use frugal_runtime::schedule::{BudgetInfo, Content, ContentEdges, ScheduleAction, largest_box};
 use frugal_runtime::{BBox, Detection};
@@ -70,7 +70,9 @@ pub struct BudgetConfig {
     pub smoothing: f64,
     /// Most objects tracked at once.
     pub max_tracks: usize,
-    /// Frame rate of the videos, frames per second.
+    /// Frame rate of the videos, frames per second, for videos whose frames carry no
+    /// time of their own; frames that do (imported video) arrive at their own times
+    /// ([`VideoLog::arrivals_ms`](crate::replay::VideoLog::arrivals_ms)).
     pub fps: f64,
     /// What happens to frames that arrive while perception is busy.
     pub rule: crate::stream::FrameRule,
@@ -183,12 +185,14 @@ impl BudgetConfig {
     }
 }
 
-/// The F1 of what a frame shows, 1 when there is nothing to find and nothing shown.
-pub fn shown_f1(shown: &[Detection], truth: &[Truth], iou: f32) -> f64 {
+/// The F1 of what a frame shows against its ground truth (`gt`, whose detections are
+/// not used), 1 when there is nothing to find and nothing shown.
+pub fn shown_f1(shown: &[Detection], gt: &ImageResult, iou: f32) -> f64 {
     let (tp, fp, fneg) = image_counts(
         &ImageResult {
             detections: shown.to_vec(),
-            truth: truth.to_vec(),
+            truth: gt.truth.clone(),
+            ignore: gt.ignore.clone(),
         },
         iou,
         f32::NEG_INFINITY,

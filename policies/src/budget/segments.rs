@@ -4,7 +4,7 @@
 use crate::error::Result;
 use crate::replay::{Frames, ReplayLog, VideoLog};
 use crate::scoring::TrackerCost;
-use crate::scoring::truth;
+use crate::scoring::ground_truth;
 use frugal_runtime::BBox;
 use frugal_runtime::schedule::{Content, ContentEdges};
 
@@ -39,7 +39,7 @@ pub fn video_segments(
             let mut p = Perceiver::new(log, video, frames, cost, cfg.max_tracks);
             p.load(t)?;
             let (shown, score, ms) = p.detect(t, v)?;
-            let tr = truth(video, t);
+            let tr = ground_truth(video, t);
             let mut seg = Segment {
                 score,
                 frames: vec![(shown_f1(&shown, &tr, iou), shown.len(), largest(&shown), ms)],
@@ -53,7 +53,7 @@ pub fn video_segments(
                     break;
                 }
                 let shown = p.tracked();
-                let tr = truth(video, t + k);
+                let tr = ground_truth(video, t + k);
                 seg.frames
                     .push((shown_f1(&shown, &tr, iou), shown.len(), largest(&shown), ms));
             }

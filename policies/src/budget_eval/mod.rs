@@ -33,7 +33,7 @@ use crate::budget::{BudgetPolicies, Perceiver, TrackState, largest};
 use crate::error::{PolicyError, Result};
 use crate::replay::{Frames, ReplayLog, VideoLog};
 use crate::scoring::{TrackerCost, correct};
-use crate::stream::{StreamRun, arrivals, simulate};
+use crate::stream::{StreamRun, simulate};
 use frugal_runtime::schedule::{ContentEdges, ContentTracker, Scheduler};
 use frugal_runtime::{Access, Bundle, Controller, Decision, Detection, Observation};
 use rand::{Rng, SeedableRng};
@@ -317,7 +317,7 @@ pub fn stream_strategy(
     let mut p = Perceiver::new(log, video, frames, cost, cfg.max_tracks);
     let tracker = strategy.tracker();
     let mut detect = Vec::new();
-    let arr = arrivals(video.frames.len(), cfg.fps);
+    let arr = video.arrivals_ms(cfg.fps);
     let run = simulate(&arr, cfg.rule, cfg.slowdown, |f| {
         let (state, mut ms) = if tracker {
             p.track(f)?

@@ -1,11 +1,11 @@
 //! The budget strategies' scores: streaming AP, F1 and clock figures per budget,
 //! scenario and strategy; the budget policy's margins; tables and plots.
 
-use crate::budget::{BudgetPolicies, truth};
+use crate::budget::BudgetPolicies;
 use crate::error::Result;
 use crate::replay::{ReplayLog, VideoLog};
-use crate::scoring::scenario_groups;
-use crate::stream::{StreamRun, StreamTiming, arrivals, sap, streaming_images, timing};
+use crate::scoring::{ground_truth, scenario_groups};
+use crate::stream::{StreamRun, StreamTiming, sap, streaming_images, timing};
 use frugal_models::metrics::{ImageResult, Interpolation, evaluate};
 use serde::{Deserialize, Serialize};
 
@@ -45,17 +45,16 @@ fn score_runs(
 ) -> (f64, f64, f64, usize, StreamTiming) {
     let mut images: Vec<ImageResult> = Vec::new();
     let mut offline: Vec<ImageResult> = Vec::new();
-    let arrs: Vec<Vec<f64>> = runs
-        .iter()
-        .map(|(v, _)| arrivals(v.frames.len(), fps))
-        .collect();
+    let arrs: Vec<Vec<f64>> = runs.iter().map(|(v, _)| v.arrivals_ms(fps)).collect();
     for ((video, r), arr) in runs.iter().zip(&arrs) {
-        let tr: Vec<_> = (0..video.frames.len()).map(|f| truth(video, f)).collect();
+        let tr: Vec<_> = (0..video.frames.len())
+            .map(|f| ground_truth(video, f))
+            .collect();
         images.extend(streaming_images(arr, &tr, &r.run));
         for o in &r.run.outputs {
             offline.push(ImageResult {
                 detections: o.shown.clone(),
-                truth: tr[o.frame].clone(),
+                ..tr[o.frame].clone()
             });
         }
     }

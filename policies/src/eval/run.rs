@@ -4,7 +4,7 @@
 use super::{EvalConfig, FrameTrace, Strategy, VideoRun};
 use crate::error::{PolicyError, Result};
 use crate::replay::{Frames, ReplayLog, VideoLog};
-use crate::scoring::{TRACK_POINTS, correct, reported, truth};
+use crate::scoring::{TRACK_POINTS, correct, ground_truth, reported};
 use frugal_models::metrics::{ImageResult, image_counts};
 use frugal_runtime::track::{Pyramid, Tracker, TrackerParams, rgb_to_gray};
 use frugal_runtime::{BBox, Bundle, Controller, Decision, Detection, Observation, TrackStatus};
@@ -222,7 +222,7 @@ fn run_controlled(
         trace.state = bucket.index() * v_n + usize::from(shown_variant);
         let im = ImageResult {
             detections: shown,
-            truth: truth(video, fi),
+            ..ground_truth(video, fi)
         };
         trace.counts = image_counts(&im, cfg.eval_iou, f32::NEG_INFINITY);
         out.images.push(im);
@@ -253,7 +253,7 @@ pub(super) fn run_oracle(
             .unwrap_or(fallback);
         let im = ImageResult {
             detections: reported(log, video, fi, v),
-            truth: truth(video, fi),
+            ..ground_truth(video, fi)
         };
         let bucket = log.buckets(v).to_runtime().bucket(f.best_score(v));
         out.frames.push(FrameTrace {

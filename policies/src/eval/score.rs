@@ -169,6 +169,12 @@ pub fn class_counts(im: &ImageResult, class: ClassId, iou: f32) -> (usize, usize
             .filter(|t| t.class == class)
             .copied()
             .collect(),
+        ignore: im
+            .ignore
+            .iter()
+            .filter(|r| r.class.is_none_or(|c| c == class))
+            .copied()
+            .collect(),
     };
     image_counts(&only, iou, f32::NEG_INFINITY)
 }

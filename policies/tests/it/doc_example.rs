@@ -30,6 +30,8 @@ fn crate_docs_example() -> Result<(), frugal_policies::PolicyError> {
             index: i,
             truth,
             detections: vec![],
+            ignore: Vec::new(),
+            time_s: None,
         });
     }
     let video = VideoLog {

@@ -62,6 +62,8 @@ fn hand_log() -> ReplayLog {
                     index: i as u32,
                     truth: vec![],
                     detections: vec![a, b],
+                    ignore: Vec::new(),
+                    time_s: None,
                 })
                 .collect(),
         }],
@@ -306,6 +308,8 @@ fn confidently_wrong_log() -> ReplayLog {
             index: i,
             truth: vec![sign],
             detections: vec![vec![wrong], vec![det(0.7)]],
+            ignore: Vec::new(),
+            time_s: None,
         })
         .collect();
     log

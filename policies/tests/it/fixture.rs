@@ -72,6 +72,8 @@ pub fn clips() -> (MemoryFrames, Vec<VideoLog>) {
                     bbox: [b.x1, b.y1, b.x2, b.y2],
                 }],
                 detections: Vec::new(),
+                ignore: Vec::new(),
+                time_s: None,
             });
         }
         videos.push(VideoLog {

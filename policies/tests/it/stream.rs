@@ -2,7 +2,7 @@
 //! perception loop.
 
 use super::fixture::python_peer;
-use frugal_models::metrics::{ImageResult, Truth};
+use frugal_models::metrics::{IgnoreRegion, ImageResult, Truth};
 use frugal_policies::stream::{FrameRule, arrivals, sap, simulate, streaming_images};
 use frugal_runtime::{BBox, Detection};
 use rand::{Rng, SeedableRng};
@@ -17,8 +17,9 @@ fn xywh(b: &BBox) -> [f64; 4] {
     [x1, y1, x2 - x1, y2 - y1]
 }
 
-/// Moving objects of 3 classes over 3 videos; a noisy detector whose compute time
-/// varies from 5 to 90 ms, streamed at 30 fps with the latest-frame rule.
+/// Moving objects of 3 classes over 3 videos, each with a crowd (ignore region) of one
+/// class; a noisy detector whose compute time varies from 5 to 90 ms and that also
+/// fires inside the crowd, streamed at 30 fps with the latest-frame rule.
 #[test]
 fn stream_sap_matches_pycocotools() {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(23);
@@ -45,9 +46,14 @@ fn stream_sap_matches_pycocotools() {
                 (rng.random_range(0..classes) as u16, [x, y, w, h], v)
             })
             .collect();
-        let truth: Vec<Vec<Truth>> = (0..n)
-            .map(|f| {
-                objects
+        // a still crowd region of one class, far from the start of the moving objects
+        let crowd = IgnoreRegion {
+            class: Some(rng.random_range(0..classes) as u16),
+            bbox: BBox::new(420.0, 260.0, 500.0, 330.0),
+        };
+        let truth: Vec<ImageResult> = (0..n)
+            .map(|f| ImageResult {
+                truth: objects
                     .iter()
                     .filter(|_| f % 17 != 5) // some frames without truth
                     .map(|&(class, [x, y, w, h], [vx, vy])| {
@@ -62,14 +68,16 @@ fn stream_sap_matches_pycocotools() {
                             },
                         }
                     })
-                    .collect()
+                    .collect(),
+                ignore: vec![crowd],
+                ..ImageResult::default()
             })
             .collect();
         let arr = arrivals(n, 30.0);
         let mut det_rng = rand_chacha::ChaCha8Rng::seed_from_u64(rng.random());
         let run = simulate(&arr, FrameRule::Latest, 1.0, |f| {
             let mut shown: Vec<Detection> = Vec::new();
-            for t in &truth[f] {
+            for t in &truth[f].truth {
                 if det_rng.random_bool(0.15) {
                     continue; // a miss
                 }
@@ -86,6 +94,24 @@ fn stream_sap_matches_pycocotools() {
                         x2: t.bbox.x2 + j(&mut det_rng),
                         y2: t.bbox.y2 + j(&mut det_rng),
                     },
+                    score: det_rng.random_range(0.3..1.0),
+                    class,
+                });
+            }
+            // inside the crowd: of its class (excused when ≥ 50 % … 95 % of the box is
+            // in it) or of another class (a false alarm)
+            if det_rng.random_bool(0.5) {
+                let (x, y) = (
+                    det_rng.random_range(400.0..470.0f32),
+                    det_rng.random_range(250.0..300.0f32),
+                );
+                let class = if det_rng.random_bool(0.7) {
+                    crowd.class.unwrap_or(0)
+                } else {
+                    (crowd.class.unwrap_or(0) + 1) % classes as u16
+                };
+                shown.push(Detection {
+                    bbox: BBox::new(x, y, x + 30.0, y + 25.0),
                     score: det_rng.random_range(0.3..1.0),
                     class,
                 });
@@ -117,7 +143,8 @@ fn stream_sap_matches_pycocotools() {
         videos_json.push(serde_json::json!({
             "frames": arr.iter().zip(&truth).map(|(t, tr)| serde_json::json!({
                 "time_ms": t,
-                "truth": tr.iter().map(|g| serde_json::json!({"category_id": g.class, "bbox": xywh(&g.bbox)})).collect::<Vec<_>>(),
+                "truth": tr.truth.iter().map(|g| serde_json::json!({"category_id": g.class, "bbox": xywh(&g.bbox)})).collect::<Vec<_>>(),
+                "ignore": tr.ignore.iter().map(|g| serde_json::json!({"category_id": g.class, "bbox": xywh(&g.bbox)})).collect::<Vec<_>>(),
             })).collect::<Vec<_>>(),
             "outputs": run.outputs.iter().map(|o| serde_json::json!({
                 "finish_ms": o.finish_ms,
@@ -131,6 +158,19 @@ fn stream_sap_matches_pycocotools() {
     assert!(
         ours50 > 0.05 && ours50 < 0.95,
         "a case far from 0 and 1: {ours50}"
+    );
+    // the crowds matter: without them, the detections inside are false alarms
+    let no_crowd: Vec<ImageResult> = all_images
+        .iter()
+        .map(|im| ImageResult {
+            ignore: Vec::new(),
+            ..im.clone()
+        })
+        .collect();
+    let (plain50, _) = sap(&no_crowd, classes);
+    assert!(
+        plain50 < ours50 - 0.01,
+        "crowds should excuse detections: {plain50} without, {ours50} with"
     );
 
     let case =
@@ -148,4 +188,40 @@ fn stream_sap_matches_pycocotools() {
         (ours - t).abs() < 1e-9,
         "sAP@[.5:.95]: frugal {ours}, pycocotools {t}"
     );
+}
+
+/// The streaming clock runs on the frames' own times when every frame has one (imported
+/// video, here with a gap where the source dropped frames), else at the given rate.
+#[test]
+fn frames_arrive_at_their_own_times_when_they_have_them() {
+    use frugal_data::{Clutter, Light, Split};
+    use frugal_policies::replay::{FrameLog, VideoLog};
+    let frame = |index: u32, time_s: Option<f64>| FrameLog {
+        index,
+        truth: Vec::new(),
+        detections: Vec::new(),
+        ignore: Vec::new(),
+        time_s,
+    };
+    let mut video = VideoLog {
+        id: 0,
+        clutter: Clutter::Low,
+        light: Light::Normal,
+        split: Split::Test,
+        width: 64,
+        height: 48,
+        frames: vec![
+            frame(0, Some(10.0)),
+            frame(1, Some(10.04)),
+            frame(2, Some(10.2)),
+        ],
+    };
+    let arr = video.arrivals_ms(30.0);
+    assert_eq!(arr.len(), 3);
+    for (a, want) in arr.iter().zip([0.0, 40.0, 200.0]) {
+        assert!((a - want).abs() < 1e-9, "{arr:?}");
+    }
+    // one frame without a time: the whole video runs on the rate
+    video.frames[1].time_s = None;
+    assert_eq!(video.arrivals_ms(25.0), arrivals(3, 25.0));
 }

@@ -18,7 +18,9 @@
 //! Real-world quirks, handled as pycocotools and the MOT tools do: an image listed but
 //! missing is skipped and counted (an error with `strict`); a box reaching past the
 //! image is clipped to it and counted; a box of negative size, or wholly outside its
-//! image, is an error naming the record.
+//! image, is an error naming the record; crowds (COCO `iscrowd`), VOC `difficult`
+//! objects and the video formats' ignore boxes become the frame's ignore regions
+//! ([`IgnoreRegion`]), which evaluation neither requires nor penalises.
 //!
 //! This file holds the three still-image formats and what every import shares (splits,
 //! checks, writing); video annotation formats are in [`video`](mod@video).
@@ -26,8 +28,8 @@ use crate::coco::CocoFile;
 use crate::dataset::PartialDir;
 use crate::generate::encode_png;
 use crate::{
-    BBox, ClassId, Clutter, DataError, Dataset, FrameRecord, Light, NavAction, Object, Source,
-    Split, VideoMeta,
+    BBox, ClassId, Clutter, DataError, Dataset, FrameRecord, IgnoreRegion, Light, NavAction,
+    Object, Source, Split, VideoMeta,
 };
 use classes::ClassTable;
 use rayon::prelude::*;
@@ -36,12 +38,14 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 pub mod classes;
+mod export;
 pub mod settings;
 pub mod video;
 
 use crate::annotations::AnnotationFormat;
 use crate::media::Sampling;
 pub use classes::{ClassList, ClassMap, parse_action};
+pub use export::export_video;
 pub use settings::ImportSettings;
 
 /// A source annotation format.
@@ -174,8 +178,19 @@ struct SourceImage {
     video: Option<u32>,
     index: Option<u32>,
     split: Option<Split>,
-    /// (record, class, box); boxes are checked once the image size is known.
-    objects: Vec<(String, ClassId, BBox)>,
+    /// Boxes, checked once the image size is known.
+    objects: Vec<SourceBox>,
+}
+
+/// One box of a still-image source.
+#[derive(Debug)]
+struct SourceBox {
+    /// Its record, for errors.
+    record: String,
+    class: ClassId,
+    bbox: BBox,
+    /// An ignore region (COCO `iscrowd`, VOC `difficult`), not an object.
+    ignore: bool,
 }
 
 fn parse_split(s: &str) -> Option<Split> {
@@ -267,7 +282,12 @@ fn read_coco(
                 class: format!("category id {}", ann.category_id),
             })?;
         if let Some(class) = *class {
-            slot.objects.push((record, class, ann.to_bbox()));
+            slot.objects.push(SourceBox {
+                record,
+                class,
+                bbox: ann.to_bbox(),
+                ignore: ann.iscrowd != 0,
+            });
         }
     }
     Ok(out)
@@ -291,6 +311,9 @@ struct VocSize {
 struct VocObject {
     name: String,
     bndbox: VocBox,
+    /// 1: not scored by the VOC devkit (an ignore region here).
+    #[serde(default)]
+    difficult: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -330,11 +353,13 @@ fn read_voc(
             let record = format!("object {} ({})", i + 1, o.name);
             if let Some(class) = table.resolve(&file, &record, &o.name, None)? {
                 let b = &o.bndbox;
-                objects.push((
+                let ignore = o.difficult.as_deref().is_some_and(|d| d.trim() == "1");
+                objects.push(SourceBox {
                     record,
                     class,
-                    BBox::new(b.xmin - 1.0, b.ymin - 1.0, b.xmax, b.ymax),
-                ));
+                    bbox: BBox::new(b.xmin - 1.0, b.ymin - 1.0, b.xmax, b.ymax),
+                    ignore,
+                });
             }
         }
         out.push(SourceImage {
@@ -429,7 +454,12 @@ fn read_gtsdb(
         });
         if let Some(class) = table.resolve(path, &record, class_name, class_name.parse().ok())? {
             let bbox = BBox::new(coords[0], coords[1], coords[2] + 1.0, coords[3] + 1.0);
-            out[slot].objects.push((record, class, bbox));
+            out[slot].objects.push(SourceBox {
+                record,
+                class,
+                bbox,
+                ignore: false,
+            });
         }
     }
     Ok(out)
@@ -658,6 +688,7 @@ pub fn import(opts: &ImportOptions, out: &Path) -> Result<Dataset, DataError> {
     for f in converted {
         let (frame, c) = f?;
         counts.clipped_boxes += c.clipped_boxes;
+        counts.ignored_boxes += c.ignored_boxes;
         frames.push(frame);
     }
     let scenario: BTreeMap<u32, (Clutter, Light)> = frames
@@ -705,11 +736,21 @@ fn convert(
     }
     let mut counts = ImportCounts::default();
     let mut objects = Vec::with_capacity(s.objects.len());
-    for (record, class, bbox) in &s.objects {
-        objects.push(Object {
-            class: *class,
-            bbox: place_box(&s.ann_file, record, *bbox, w, h, &mut counts)?,
-        });
+    let mut ignore = Vec::new();
+    for b in &s.objects {
+        let bbox = place_box(&s.ann_file, &b.record, b.bbox, w, h, &mut counts)?;
+        if b.ignore {
+            counts.ignored_boxes += 1;
+            ignore.push(IgnoreRegion {
+                class: Some(b.class),
+                bbox,
+            });
+        } else {
+            objects.push(Object {
+                class: b.class,
+                bbox,
+            });
+        }
     }
     let file = crate::generate::frame_file(video, index);
     let path = dir.join(&file);
@@ -726,6 +767,7 @@ fn convert(
         index,
         split,
         objects,
+        ignore,
         time_s: None,
     };
     Ok((frame, counts))

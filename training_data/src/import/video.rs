@@ -23,7 +23,7 @@ use super::{ImportCounts, ImportOptions, collect_videos, hashed_split, place_box
 use crate::annotations::{self, AnnotatedVideo, AnnotationFormat, ReadOptions};
 use crate::dataset::PartialDir;
 use crate::media::{DecodedFrame, FrameSource};
-use crate::{ClassId, DataError, Dataset, FrameRecord, Object, Split, VideoMeta};
+use crate::{ClassId, DataError, Dataset, FrameRecord, IgnoreRegion, Object, Split, VideoMeta};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -42,6 +42,7 @@ struct Written {
     width: u32,
     height: u32,
     objects: Vec<Object>,
+    ignore: Vec<IgnoreRegion>,
 }
 
 /// Import `opts.input` in a video annotation `format` into `out`.
@@ -164,6 +165,7 @@ pub(crate) fn import_video(
                     index: k as u32,
                     split,
                     objects: w.objects,
+                    ignore: w.ignore,
                     // microseconds: the precision of video timestamps, and a value
                     // that survives the JSON round trip unchanged
                     time_s: Some(((w.time_s - t0) * 1e6).round() / 1e6),
@@ -223,9 +225,16 @@ fn frames_of(
         .filter_map(|(&i, f)| f.file.as_ref().map(|file| (i, file)))
         .collect();
     if !named.is_empty() {
-        let root = match &opts.images {
-            Some(r) => r.clone(),
-            None => opts.input.parent().map(Path::to_owned).unwrap_or_default(),
+        // MOT names images relative to the sequence folder (`seqinfo.ini`'s `imDir`),
+        // the other formats relative to the annotation file
+        let mot_seq = (format == AnnotationFormat::Mot)
+            .then(|| crate::annotations::mot::seqinfo_path(&opts.input))
+            .flatten()
+            .and_then(|ini| ini.parent().map(Path::to_owned));
+        let root = match (&opts.images, mot_seq) {
+            (Some(r), _) => r.clone(),
+            (None, Some(seq)) => seq,
+            (None, None) => opts.input.parent().map(Path::to_owned).unwrap_or_default(),
         };
         return Ok(Frames::Files(
             named.into_iter().map(|(i, f)| (i, root.join(f))).collect(),
@@ -397,6 +406,7 @@ fn stage(
     }
     let mut counts = ImportCounts::default();
     let mut objects = Vec::new();
+    let mut ignore = Vec::new();
     if let Some(f) = video.frames.get(&index) {
         for (k, b) in f.boxes.iter().enumerate() {
             let record = format!(
@@ -407,7 +417,13 @@ fn stage(
             );
             let bbox = place_box(&opts.input, &record, b.bbox, w, h, &mut counts)?;
             if b.ignore {
+                // of a kept class: excuses that class's detections; of any other (MOT's
+                // distractors): any detection, as the MOT devkit drops them
                 counts.ignored_boxes += 1;
+                ignore.push(IgnoreRegion {
+                    class: class_of.get(b.class).copied().flatten(),
+                    bbox,
+                });
                 continue;
             }
             if let Some(class) = class_of.get(b.class).copied().flatten() {
@@ -430,6 +446,7 @@ fn stage(
             width: w,
             height: h,
             objects,
+            ignore,
         },
         counts,
     ))
