@@ -773,15 +773,10 @@ fn an_mp4_with_a_mot_file_imports_its_frames_boxes_and_timestamps() {
         // 30 fps, exactly
         assert!((got.frame_time(a) - f64::from(b.index) / 30.0).abs() < 1e-6);
         // the same pixels within codec error
-        let (x, y) = (got.load_rgb(a).expect("rgb"), ds.load_rgb(b).expect("rgb"));
-        assert_eq!(x.dimensions(), y.dimensions());
-        let diff: f64 = x
-            .as_raw()
-            .iter()
-            .zip(y.as_raw())
-            .map(|(p, q)| f64::from(p.abs_diff(*q)))
-            .sum::<f64>()
-            / x.as_raw().len() as f64;
+        let diff = mean_abs_diff(
+            &got.load_rgb(a).expect("rgb"),
+            &ds.load_rgb(b).expect("rgb"),
+        );
         // (H.264 at qp 0 in 4:4:4, then the dataset's JPEG at quality 95)
         assert!(diff < 4.0, "frame {}: mean abs difference {diff}", b.index);
     }
