@@ -1,21 +1,16 @@
 //! Detector-based perception through the deployment path: a static ONNX variant every
 //! frame ([`static_onnx`]), or the adaptive runtime ([`AdaptivePerception`]): the
-//! policy bundle's [`Pilot`] (controller + KLT trackers) deciding per frame, the chosen
-//! variant run through ONNX Runtime — the same code as on the drone
-//! (`frugal-runtime`'s `drone_loop` example).
+//! policy bundle's perception from `frugal-nav` ([`BundlePerception`]: controller + KLT
+//! trackers deciding per frame, the chosen variant run through ONNX Runtime) — the same
+//! code the drone-side program (`frugal-pilot`) runs.
 use crate::perception::{DetectorPerception, FrameInput, Percept, Perception, PerceptionError};
+use frugal_nav::BundlePerception;
+use frugal_runtime::Bundle;
 use frugal_runtime::onnx::OrtDetector;
-use frugal_runtime::pilot::{Carry, Pilot};
-use frugal_runtime::track::Pyramid;
-use frugal_runtime::{Bundle, Decision, Trigger};
+use frugal_runtime::pilot::Carry;
 use std::path::Path;
-use std::time::Instant;
 
-/// The bundle file inside a bundle folder (written by `frugal bundle write`).
-pub const BUNDLE_FILE: &str = "policy.frpb";
-
-/// The score at which a CNN detection is reported: the CNN family's `T_c`.
-pub const CNN_REPORT_SCORE: f32 = 0.5;
+pub use frugal_nav::{BUNDLE_FILE, CNN_REPORT_SCORE};
 
 /// One ONNX variant every frame (the paper's static baseline), reporting detections
 /// scoring at least [`CNN_REPORT_SCORE`].
@@ -35,242 +30,42 @@ pub fn static_onnx(
 }
 
 /// The adaptive runtime in the loop.
-pub struct AdaptivePerception {
-    bundle: Bundle<'static>,
-    pilot: Pilot<'static, 4, 64>,
-    detectors: Vec<OrtDetector>,
-    prev: Vec<u8>,
-    cur: Vec<u8>,
-    size: (usize, usize),
-    have_prev: bool,
-    label: String,
-    /// Runs and compute time (µs) per variant so far (confirmations included).
-    runs_per_variant: Vec<VariantRuns>,
-    /// Frames detected so far, by the controller's trigger (indexed as
-    /// [`Trigger::ALL`]), and confirmations.
-    detections_per_trigger: [u64; Trigger::ALL.len()],
-    confirmations: u64,
-    /// Frames the pilot only tracked.
-    tracked_frames: u64,
-    /// Compute time of tracked frames and of detection frames, µs (pyramid, tracking
-    /// and the decision included).
-    tracked_us: u64,
-    detected_us: u64,
-}
+pub struct AdaptivePerception(BundlePerception);
 
 impl AdaptivePerception {
-    /// Open the bundle in `dir` and every ONNX variant it names (up front, so opening
-    /// is not counted as flight time). The bundle bytes live as long as the process
-    /// (a few kilobytes), since the zero-copy reader borrows them.
+    /// Open the bundle folder `dir` ([`BundlePerception::open`]).
     pub fn open(dir: &Path, threads: usize) -> Result<Self, PerceptionError> {
-        let path = dir.join(BUNDLE_FILE);
-        let bytes = std::fs::read(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-        let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-        let bundle = Bundle::parse(bytes).map_err(|e| format!("{}: {e}", path.display()))?;
-        let mut detectors = Vec::new();
-        for (_, v) in bundle.variants() {
-            let graph = dir.join(v.onnx_file);
-            let vdir = graph.parent().ok_or_else(|| {
-                format!("{}: variant {} has no ONNX file", path.display(), v.name)
-            })?;
-            detectors.push(OrtDetector::open(vdir, threads)?);
-        }
-        let n = detectors.len();
-        Ok(Self {
-            bundle,
-            pilot: Pilot::new(bundle),
-            detectors,
-            prev: Vec::new(),
-            cur: Vec::new(),
-            size: (0, 0),
-            have_prev: false,
-            label: format!(
-                "adaptive-{}",
-                dir.file_name()
-                    .map_or("bundle".into(), |n| n.to_string_lossy())
-            ),
-            runs_per_variant: vec![VariantRuns::default(); n],
-            detections_per_trigger: [0; Trigger::ALL.len()],
-            confirmations: 0,
-            tracked_frames: 0,
-            tracked_us: 0,
-            detected_us: 0,
-        })
+        BundlePerception::open(dir, threads).map(Self)
     }
 
-    /// Carry detections from `carry`'s bucket up ([`Pilot::with_carry`]; the default
-    /// is [`Carry::Optimal`]). Call before the first frame.
-    pub fn with_carry(mut self, carry: Carry) -> Self {
-        self.pilot = Pilot::new(self.bundle).with_carry(carry);
-        let kind = match carry {
-            Carry::Optimal => "",
-            Carry::GoodEnough => "-carry-ge",
-            Carry::Reported => "-carry-reported",
-        };
-        self.label.push_str(kind);
-        self
+    /// Carry detections from `carry`'s bucket up ([`BundlePerception::with_carry`]).
+    pub fn with_carry(self, carry: Carry) -> Self {
+        Self(self.0.with_carry(carry))
     }
 
     /// The parsed bundle.
     pub fn bundle(&self) -> &Bundle<'static> {
-        &self.bundle
+        self.0.bundle()
     }
 }
 
 impl Perception for AdaptivePerception {
     fn name(&self) -> String {
-        self.label.clone()
+        self.0.name()
     }
 
     fn perceive(&mut self, input: &FrameInput<'_>) -> Result<Percept, PerceptionError> {
-        let started = Instant::now();
-        let frame = input.image;
-        let (w, h) = (frame.width as usize, frame.height as usize);
-        let levels = 3;
-        if (w, h) != self.size {
-            let need = Pyramid::required_len(w, h, levels).ok_or("frame too small to track")?;
-            self.prev = vec![0; need];
-            self.cur = vec![0; need];
-            self.size = (w, h);
-            self.have_prev = false;
-        }
-        let mut cur = Pyramid::new(&mut self.cur, w, h, levels)?;
-        cur.build_rgb(&frame)?;
-        let prev = if self.have_prev {
-            Some(Pyramid::new(&mut self.prev, w, h, levels)?)
-        } else {
-            None
-        };
-        let decision = self.pilot.decide(input.index as u32, prev.as_ref(), &cur);
-        let detections = match decision {
-            Decision::Detect { variant, reason } => {
-                if let Some(n) = self.detections_per_trigger.get_mut(reason as usize) {
-                    *n += 1;
-                }
-                // the first variant, then any the policy asks for on the same frame
-                let (detectors, counts) = (&mut self.detectors, &mut self.runs_per_variant);
-                let (_, mut found) = self.pilot.detect_with(&cur, variant, |variant| {
-                    run_variant(detectors, counts, variant, frame)
-                })?;
-                // the drone acts on reported detections only, as the replay scores them:
-                // those at least the finding variant's T_c
-                let t_c = self.pilot.report_score();
-                found.retain(|d| d.score >= t_c);
-                found
-            }
-            Decision::Track => self.pilot.tracked().collect(),
-        };
-        std::mem::swap(&mut self.prev, &mut self.cur);
-        self.have_prev = true;
-        let elapsed = started.elapsed();
-        let us = u64::try_from(elapsed.as_micros()).unwrap_or(u64::MAX);
-        if decision == Decision::Track {
-            self.tracked_frames += 1;
-            self.tracked_us = self.tracked_us.saturating_add(us);
-        } else {
-            self.detected_us = self.detected_us.saturating_add(us);
-        }
-        Ok(Percept {
-            detections,
-            compute_ms: elapsed.as_secs_f64() * 1e3,
-            tracked: decision == Decision::Track,
-        })
+        self.0.perceive(input.image, input.index)
     }
 
-    /// The bundle's reference variant (the most accurate) on this frame, reporting
-    /// what scores at least its family's `T_c`. The pilot's state is left as it is:
-    /// a confirmation is the navigator's question, not a step of the policy.
+    /// The bundle's reference variant (the most accurate) on this frame
+    /// ([`BundlePerception::confirm`]).
     fn confirm(&mut self, input: &FrameInput<'_>) -> Result<Option<Percept>, PerceptionError> {
-        let started = Instant::now();
-        self.confirmations += 1;
-        let reference = self.bundle.policy().reference();
-        let t_c = self
-            .bundle
-            .variant_buckets(reference)
-            .map_or(CNN_REPORT_SCORE, |b| b.t_c);
-        let mut detections = run_variant(
-            &mut self.detectors,
-            &mut self.runs_per_variant,
-            reference,
-            input.image,
-        )?;
-        detections.retain(|d| d.score >= t_c);
-        Ok(Some(Percept {
-            detections,
-            compute_ms: started.elapsed().as_secs_f64() * 1e3,
-            tracked: false,
-        }))
+        self.0.confirm(input.image).map(Some)
     }
 
-    /// `frames detected: <trigger>` per controller trigger (the frame's first
-    /// detection; a second one on the same image counts under its variant only),
-    /// `frames tracked`, the compute time of both kinds of frame (`µs on tracked
-    /// frames`, `µs on detection frames`, confirmations not included), `confirmations`,
-    /// and `runs of <variant>` per bundle variant (every detection, second ones and
-    /// confirmations included).
+    /// [`BundlePerception::counts`].
     fn counts(&self) -> Vec<(String, u64)> {
-        let triggers = Trigger::ALL
-            .iter()
-            .zip(self.detections_per_trigger)
-            .map(|(t, n)| (format!("frames detected: {t:?}"), n));
-        let variants =
-            self.bundle
-                .variants()
-                .zip(&self.runs_per_variant)
-                .flat_map(|((_, v), r)| {
-                    [
-                        (format!("runs of {}", v.name), r.runs),
-                        (format!("µs in {}", v.name), r.us),
-                    ]
-                });
-        triggers
-            .chain({
-                let t = self.pilot.track_stats();
-                [
-                    ("boxes tracked".to_string(), u64::from(t.started)),
-                    ("boxes not carried".to_string(), u64::from(t.not_carried)),
-                    (
-                        "trackers failed to start".to_string(),
-                        u64::from(t.failed_to_start),
-                    ),
-                    ("tracks lost".to_string(), u64::from(t.lost)),
-                ]
-            })
-            .chain([
-                ("frames tracked".to_string(), self.tracked_frames),
-                ("µs on tracked frames".to_string(), self.tracked_us),
-                ("µs on detection frames".to_string(), self.detected_us),
-                ("confirmations".to_string(), self.confirmations),
-            ])
-            .chain(variants)
-            .collect()
+        self.0.counts()
     }
-}
-
-/// How often one variant ran, and for how long.
-#[derive(Clone, Copy, Debug, Default)]
-struct VariantRuns {
-    runs: u64,
-    us: u64,
-}
-
-/// Run the bundle's variant `variant` on `frame`, counting it and its time.
-fn run_variant(
-    detectors: &mut [OrtDetector],
-    counts: &mut [VariantRuns],
-    variant: frugal_runtime::VariantId,
-    frame: frugal_runtime::FrameRef<'_>,
-) -> Result<Vec<frugal_runtime::Detection>, PerceptionError> {
-    let v = usize::from(variant);
-    let det = detectors
-        .get_mut(v)
-        .ok_or("the bundle names a variant it has no detector for")?;
-    let started = Instant::now();
-    let found = det.detect(frame)?;
-    if let Some(c) = counts.get_mut(v) {
-        c.runs += 1;
-        let us = u64::try_from(started.elapsed().as_micros()).unwrap_or(u64::MAX);
-        c.us = c.us.saturating_add(us);
-    }
-    Ok(found)
 }

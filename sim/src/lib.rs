@@ -97,13 +97,13 @@ pub mod texture;
 
 pub use adaptive::{AdaptivePerception, static_onnx};
 pub use flight::{
-    ConfirmationRead, FlightConfig, FlightError, FlightResult, FrameView, Mode, NavConfig, Outcome,
-    fly,
+    ConfirmationRead, FlightConfig, FlightError, FlightResult, FrameView, Mode, NavCommand,
+    NavConfig, Outcome, fly,
 };
 pub use maze::{Dir, Lighting, LineProblem, Maze, MazeError, Mount, SignSpec, WaitZone};
 pub use perception::{
     DetectorPerception, DeviceProfile, FrameInput, GroundTruthPerception, Percept, Perception,
     PerceptionError,
 };
-pub use record::FootageRecorder;
+pub use record::{FootageRecorder, flight_log_file};
 pub use render::{CameraSpec, FrameTruth, PedestrianTruth, Pose, Renderer, SignTruth};

@@ -19,24 +19,7 @@ pub struct FrameInput<'a> {
     pub truth: &'a FrameTruth,
 }
 
-/// What perception returns for one frame.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Percept {
-    /// Sign detections in image pixels, on the detector family's score scale.
-    pub detections: Vec<Detection>,
-    /// Compute time this frame consumed on the machine that ran it, milliseconds.
-    /// The flight multiplies it by the device profile's slowdown to advance the
-    /// simulated clock.
-    pub compute_ms: f64,
-    /// The detections are boxes a tracker carried from an earlier frame's detection,
-    /// not measured on this one: they say a sign is still there, but their size (and
-    /// so the distance read from it) is the tracker's prediction, which drifts and
-    /// keeps a misdrawn box's error. The navigator places signs by measured boxes only.
-    pub tracked: bool,
-}
-
-/// An error from a perception implementation (boxed so any detector's error fits).
-pub type PerceptionError = Box<dyn std::error::Error + Send + Sync>;
+pub use frugal_nav::{Percept, PerceptionError};
 
 /// Turns camera frames into sign detections, reporting the compute time it used.
 ///

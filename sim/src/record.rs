@@ -8,6 +8,11 @@
 //! the policy learns from); its illumination is the maze's, its clutter `low` (plain
 //! warehouse walls). A sign is annotated when the ground-truth perception would report
 //! it ([`GroundTruthPerception::reports`]): at least 8 px tall and half visible.
+//!
+//! Beside the frames, each flight's [`FlightLog`] (`logs/flight_<video>.csv`: per kept
+//! frame, the decision time, distance flown, heading, pedestrian proximity and the
+//! command issued), with which the drone-side program replays the footage on the
+//! navigator's own inputs (`frugal-pilot --odometry`).
 use crate::flight::FrameView;
 use crate::maze::{Lighting, Maze};
 use crate::perception::GroundTruthPerception;
@@ -16,6 +21,7 @@ use frugal_data::generate::{encode_png, frame_file};
 use frugal_data::{
     Clutter, DataError, Dataset, FrameRecord, Light, Object, Source, Split, VideoMeta, classes,
 };
+use frugal_nav::{FlightLog, LogRow};
 use std::path::{Path, PathBuf};
 
 /// Writes the frames of one or more flights into a dataset folder, swapped into place
@@ -27,6 +33,12 @@ pub struct FootageRecorder {
     filter: GroundTruthPerception,
     videos: Vec<VideoMeta>,
     frames: Vec<FrameRecord>,
+    logs: Vec<FlightLog>,
+}
+
+/// The flight log of video `id` inside a recording folder.
+pub fn flight_log_file(id: u32) -> String {
+    format!("logs/flight_{id}.csv")
 }
 
 impl FootageRecorder {
@@ -39,6 +51,7 @@ impl FootageRecorder {
             filter: GroundTruthPerception::default(),
             videos: Vec::new(),
             frames: Vec::new(),
+            logs: Vec::new(),
         })
     }
 
@@ -58,6 +71,7 @@ impl FootageRecorder {
             name: None,
             fps: None,
         });
+        self.logs.push(FlightLog::default());
     }
 
     /// Keep `view` if its index is a multiple of `every`: its PNG and its annotations.
@@ -101,6 +115,17 @@ impl FootageRecorder {
             ignore: Vec::new(),
             time_s: None,
         });
+        if let Some(log) = self.logs.last_mut() {
+            log.rows.push(LogRow {
+                frame: u64::from(video.frames),
+                capture_s: view.time_s,
+                decision_s: view.decision_s,
+                odometer_m: view.odometer,
+                yaw_rad: view.yaw,
+                pedestrian_close: view.pedestrian_close,
+                command: view.command,
+            });
+        }
         video.frames += 1;
         Ok(())
     }
@@ -119,6 +144,13 @@ impl FootageRecorder {
             frames: self.frames,
         };
         dataset.write_metadata(self.partial.path(), source)?;
+        let dir = self.partial.path().join("logs");
+        std::fs::create_dir_all(&dir).map_err(|e| DataError::io(&dir, e))?;
+        for (video, log) in dataset.videos.iter().zip(&self.logs) {
+            let path = self.partial.path().join(flight_log_file(video.id));
+            log.write(&path)
+                .map_err(|e| DataError::invalid(&path, "flight log", e.message))?;
+        }
         self.partial.commit()?;
         dataset.root = self.out;
         Ok(dataset)

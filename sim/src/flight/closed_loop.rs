@@ -3,19 +3,14 @@
 //! detections (see the [module documentation](super) for the timing model).
 use super::config::FlightConfig;
 use super::geometry::{collides, rnd, start_pose, wrap};
-use super::ground_truth::{score, true_sign, truly};
-use super::result::{
-    ConfirmationRead, Event, FlightError, FlightResult, FrameView, Mode, Outcome, TrackPoint,
-};
-use super::sighting::{
-    RECONFIRM_EVERY, SUPPORT_DECAY, Sighting, outranked_dropped, spot_tolerance,
-};
+use super::ground_truth::{score, true_sign};
+use super::result::{Event, FlightError, FlightResult, FrameView, Mode, Outcome, TrackPoint};
 use crate::maze::Maze;
 use crate::perception::{FrameInput, Perception};
 use crate::render::{Renderer, Walker};
-use frugal_data::{NavAction, Sign};
-use frugal_runtime::{Detection, FrameRef};
-use std::f64::consts::FRAC_PI_2;
+use frugal_nav::heading::{reached, turn_target};
+use frugal_nav::{NavCommand, NavInput, Navigator, Optics};
+use frugal_runtime::FrameRef;
 use std::time::Instant;
 
 /// Fly `maze` once with `perception` and `seed`. `observer` sees every processed frame
@@ -50,16 +45,6 @@ pub fn fly(
             cam.width, cam.height, cam.hfov_deg
         )));
     }
-    let half_cell = maze.cell / 2.0;
-    let turn_distance = nav.turn_distance.unwrap_or(half_cell);
-    let land_distance = nav.land_distance.unwrap_or(half_cell);
-    let commit_distance = nav
-        .commit_distance
-        .unwrap_or(2.0 * maze.cell)
-        .max(turn_distance)
-        .max(land_distance);
-    let zone_length = nav.wait_zone_length.unwrap_or(3.0 * maze.cell);
-    let rearm = nav.rearm_distance.unwrap_or(half_cell);
     let yaw_rate = nav.yaw_rate_deg.to_radians();
     let name = perception.name();
 
@@ -69,18 +54,21 @@ pub fn fly(
         .collect();
     let mut pose = start_pose(maze, seed);
     let mut target_yaw = pose.yaw;
-    let mut mode = Mode::Cruise;
+    let mut navigator = Navigator::new(
+        nav,
+        maze.cell,
+        Optics {
+            width: cam.width,
+            focal_px: cam.focal_px(),
+            sign_size: maze.sign_size,
+        },
+    );
+    let mut mode = navigator.mode();
     let mut speed = 0.0; // hover until the first frame is processed
     let mut t = 0.0;
     let mut dt_avg: Option<f64> = None;
     let mut odo = 0.0;
-    let mut turn_armed_at = 0.0;
-    let mut wait_zone_until = f64::NEG_INFINITY;
-    let mut wait_started = 0.0;
     let mut wait_s = 0.0;
-    let mut streak: Option<(NavAction, u32)> = None;
-    // turn and STOP signs read ahead, placed on the odometer
-    let mut sightings: Vec<Sighting> = Vec::new();
     let mut rgb = Vec::new();
     let mut track = vec![TrackPoint {
         t,
@@ -93,11 +81,9 @@ pub fn fly(
     let mut frames = 0u64;
     let (mut compute_total, mut render_total) = (0.0, 0.0);
     let (mut sign_frames, mut sign_hits, mut false_detections) = (0u64, 0u64, 0u64);
-    let (mut confirmations, mut rejections) = (0u64, 0u64);
     let mut confirmation_reads = Vec::new();
     // compute time of confirmations, charged to the next interval
     let mut pending_ms = 0.0;
-    let f_px = cam.focal_px();
     let min_dt = 1.0 / nav.camera_fps;
     let outcome;
 
@@ -205,308 +191,52 @@ pub fn fly(
             .pedestrians
             .iter()
             .any(|p| p.depth <= nav.pedestrian_distance);
-        let mut landed = false;
-        match mode {
-            Mode::Turning => {
-                if wrap(target_yaw - pose.yaw).abs() < 1e-6 {
-                    pose.yaw = target_yaw;
-                    mode = Mode::Cruise;
-                    turn_armed_at = odo + rearm;
-                }
-            }
-            Mode::Waiting => {
-                if t - wait_started >= nav.wait_min_s && !ped_close {
-                    mode = Mode::Cruise;
-                    wait_zone_until = odo + zone_length;
-                    events.push(Event {
-                        t,
-                        x: pose.x,
-                        y: pose.y,
-                        what: "resume: WAIT zone clear".into(),
-                    });
-                }
-            }
-            Mode::Cruise | Mode::HoldForPedestrian => {
-                mode = Mode::Cruise;
-                // what a detection would make the drone do, and how far away the sign is
-                let reading = |d: &Detection| {
-                    let action = Sign::from_id(d.class)?.action()?;
-                    let dist = f_px * maze.sign_size / f64::from(d.bbox.height()).max(1e-3);
-                    let (cx, _) = d.bbox.center();
-                    let centred = (f64::from(cx) - f64::from(cam.width) / 2.0).abs()
-                        <= nav.centre_band * f64::from(cam.width);
-                    let acts = match action {
-                        NavAction::Stop => centred && dist <= commit_distance,
-                        NavAction::TurnLeft | NavAction::TurnRight => {
-                            centred && dist <= commit_distance && odo >= turn_armed_at
-                        }
-                        NavAction::Wait => dist <= nav.wait_distance && odo >= wait_zone_until,
-                    };
-                    acts.then_some((action, dist))
-                };
-                // the first detection this frame that would make the drone act …
-                let candidate = outranked_dropped(&percept.detections)
-                    .find_map(|d| reading(d).map(|(action, dist)| (action, dist, d.bbox)));
-                let need = nav.confirm_frames.max(1);
-                match candidate {
-                    Some((NavAction::Wait, dist, _)) => {
-                        // … a WAIT sign after `need` frames in a row …
-                        streak = match streak {
-                            Some((NavAction::Wait, n)) => Some((NavAction::Wait, n + 1)),
-                            _ => Some((NavAction::Wait, 1)),
-                        };
-                        if streak.is_some_and(|(_, n)| n >= need) {
-                            mode = Mode::Waiting;
-                            wait_started = t;
-                            streak = None;
-                            events.push(Event {
-                                t,
-                                x: pose.x,
-                                y: pose.y,
-                                what: format!("stop at WAIT (estimated {dist:.2} m)"),
-                            });
-                        }
-                    }
-                    // … a turn or STOP sign is placed on the odometer, where readings
-                    // of it accumulate
-                    Some((action, dist, bbox)) => {
-                        streak = None;
-                        let at = odo + dist;
-                        let tol = spot_tolerance(dist);
-                        let true_dist = || true_sign(&truth, &bbox).map(|g| g.depth);
-                        match sightings
-                            .iter_mut()
-                            .find(|s| (s.action == action || s.settled) && (s.at - at).abs() <= tol)
-                        {
-                            // a carried box holds a sighting's support but adds none,
-                            // and neither places nor starts a sighting: it repeats the
-                            // last detection (a weak false one would build support
-                            // frame after frame) and its size is the tracker's
-                            // prediction (a box stuck at one size close up would push
-                            // the manoeuvre ahead of the drone)
-                            Some(s) if percept.tracked => s.hold(),
-                            Some(s) => s.read(odo, dist, true_dist()),
-                            None if percept.tracked => {}
-                            None => sightings.push(Sighting::new(action, odo, dist, true_dist())),
-                        }
-                    }
-                    None => streak = None,
-                }
-                let need_f = f64::from(need);
-                let trigger_of = |s: &Sighting| {
-                    if s.action == NavAction::Stop {
-                        land_distance
-                    } else {
-                        turn_distance
-                    }
-                };
-                // a sighting that has just built enough support is read again by the
-                // perception's most accurate detector before anything is scheduled on
-                // it (one per frame), and again every RECONFIRM_EVERY metres until it
-                // is due: the majority of its readings at the same spot decides the
-                // action; where the first reads no turn or STOP sign, the sighting is
-                // dropped
-                if let Some(i) = sightings.iter().position(|s| {
-                    s.peak >= need_f
-                        && (!s.verified
-                            || (s.settled
-                                && odo - s.confirmed_at >= RECONFIRM_EVERY
-                                && odo < s.at - trigger_of(s)))
-                }) {
-                    let check =
-                        perception
-                            .confirm(&input)
-                            .map_err(|source| FlightError::Perception {
-                                name: name.clone(),
-                                frame: frames - 1,
-                                source,
-                            })?;
-                    match check {
-                        None => sightings
-                            .iter_mut()
-                            .filter(|s| s.peak >= need_f)
-                            .for_each(|s| s.verified = true),
-                        Some(check) => {
-                            confirmations += 1;
-                            pending_ms += check.compute_ms.max(0.0);
-                            compute_total += check.compute_ms.max(0.0);
-                            let s = &mut sightings[i];
-                            let tol = |dist: f64| spot_tolerance(dist.max(s.dist));
-                            let agrees = outranked_dropped(&check.detections)
-                                .filter_map(|d| reading(d).map(|r| (r, d.bbox)))
-                                .find(|&((action, dist), _)| {
-                                    action != NavAction::Wait
-                                        && (odo + dist - s.at).abs() <= tol(dist)
-                                });
-                            let seen = agrees.and_then(|(_, bbox)| true_sign(&truth, &bbox));
-                            confirmation_reads.push(ConfirmationRead {
-                                t,
-                                sighting: s.action,
-                                read: agrees.map(|((action, _), _)| action),
-                                read_m: agrees.map(|((_, dist), _)| dist),
-                                truth: seen.and_then(|g| Sign::from_id(g.class)?.action()),
-                                true_m: seen.map(|g| g.depth),
-                            });
-                            if let Some(((action, dist), _)) = agrees {
-                                let (before, was) = (s.action, s.verified);
-                                let true_dist = seen.map(|g| g.depth);
-                                s.confirmed(action, odo, dist, true_dist);
-                                if !was || s.action != before {
-                                    events.push(Event {
-                                        t,
-                                        x: pose.x,
-                                        y: pose.y,
-                                        what: format!(
-                                            "{before:?} sign {dist:.2} m ahead{} confirmed as {:?}",
-                                            truly(true_dist),
-                                            s.action
-                                        ),
-                                    });
-                                }
-                            } else if s.verified {
-                                // confirmed before: this reading abstains, unless such
-                                // readings now outnumber the votes of its action
-                                s.blanks += 1.0;
-                                s.confirmed_at = odo;
-                                let best = s.votes.iter().copied().fold(0.0, f64::max);
-                                if s.blanks > best {
-                                    let (action, at) = (s.action, s.at);
-                                    events.push(Event {
-                                        t,
-                                        x: pose.x,
-                                        y: pose.y,
-                                        what: format!(
-                                            "{action:?} sign {:.2} m ahead no longer confirmed ({} readings of nothing there)",
-                                            at - odo,
-                                            s.blanks
-                                        ),
-                                    });
-                                    sightings.remove(i);
-                                }
-                            } else {
-                                rejections += 1;
-                                let at = s.at;
-                                events.push(Event {
-                                    t,
-                                    x: pose.x,
-                                    y: pose.y,
-                                    what: format!(
-                                        "{:?} sign {:.2} m ahead not confirmed",
-                                        sightings[i].action,
-                                        at - odo
-                                    ),
-                                });
-                                sightings.remove(i);
-                            }
-                        }
-                    }
-                }
-                // signs already passed, or not read for a while, are forgotten
-                sightings.retain(|s| s.at > odo - 0.5 && (s.peak >= need_f || s.support > 0.05));
-                // carry out the best-supported manoeuvre once the odometer reaches it
-                let due = sightings
-                    .iter()
-                    .filter(|s| {
-                        let trigger = trigger_of(s);
-                        s.peak >= need_f && s.verified && s.stands_still() && odo >= s.at - trigger
-                    })
-                    .filter(|s| {
-                        // contradicted at the same spot (within the matching tolerance of
-                        // the farther reading) by another confirmed action last read
-                        // closer (a sign read close up, its arrow a larger box, is the
-                        // better reading; equally close: the better supported): not
-                        // this one
-                        !sightings.iter().any(|o| {
-                            let tol = spot_tolerance(o.dist.max(s.dist)).max(1.0);
-                            o.action != s.action
-                                && (o.at - s.at).abs() <= tol
-                                && o.peak >= need_f
-                                && o.verified
-                                && (o.dist < s.dist || (o.dist == s.dist && o.peak >= s.peak))
-                        })
-                    })
-                    .filter(|s| {
-                        // superseded by a sighting just beyond it that was read after
-                        // its last reading: the same sign, read short from afar (its
-                        // box too large) and then read right as the drone came closer
-                        !sightings.iter().any(|o| {
-                            let gap = o.at - s.at;
-                            gap > 0.0
-                                && gap <= 2.0 * spot_tolerance(s.dist)
-                                && o.fit.x_max > s.fit.x_max
-                                && o.peak >= need_f
-                                && o.verified
-                                && o.stands_still()
-                        })
-                    })
-                    .max_by(|a, b| a.peak.total_cmp(&b.peak))
-                    .copied();
-                for s in &mut sightings {
-                    if !std::mem::take(&mut s.held) {
-                        s.support *= SUPPORT_DECAY;
-                    }
-                }
-                match due {
-                    Some(Sighting {
-                        action: NavAction::Stop,
-                        dist,
-                        true_dist,
-                        ..
-                    }) if mode == Mode::Cruise => {
-                        sightings.clear();
-                        landed = true;
-                        events.push(Event {
-                            t,
-                            x: pose.x,
-                            y: pose.y,
-                            what: format!(
-                                "land at STOP (last read at {dist:.2} m{})",
-                                truly(true_dist)
-                            ),
-                        });
-                    }
-                    Some(Sighting {
-                        action: action @ (NavAction::TurnLeft | NavAction::TurnRight),
-                        dist,
-                        true_dist,
-                        fit,
-                        ..
-                    }) if mode == Mode::Cruise => {
-                        sightings.clear();
-                        let left = action == NavAction::TurnLeft;
-                        target_yaw = wrap(pose.yaw + if left { -FRAC_PI_2 } else { FRAC_PI_2 });
-                        // Snap to the grid axes so turns do not accumulate error.
-                        target_yaw = wrap((target_yaw / FRAC_PI_2).round() * FRAC_PI_2);
-                        mode = Mode::Turning;
-                        events.push(Event {
-                            t,
-                            x: pose.x,
-                            y: pose.y,
-                            what: format!(
-                                "turn {} (last read at {dist:.2} m{}; {} readings over {:.2} m, approach {:.2})",
-                                if left { "left" } else { "right" },
-                                truly(true_dist),
-                                fit.n,
-                                fit.span(),
-                                fit.approach().unwrap_or(f64::NAN)
-                            ),
-                        });
-                    }
-                    _ => {}
-                }
-                if mode == Mode::Cruise && odo < wait_zone_until && ped_close {
-                    mode = Mode::HoldForPedestrian;
-                }
-            }
-            Mode::Done => {}
+        let decided_yaw = pose.yaw;
+        let turn_done = mode == Mode::Turning && reached(target_yaw, pose.yaw);
+        if turn_done {
+            pose.yaw = target_yaw;
         }
+        let input_nav = NavInput {
+            t,
+            odometer: odo,
+            turn_done,
+            pedestrian_close: ped_close,
+            detections: &percept.detections,
+            tracked: percept.tracked,
+        };
+        let step = navigator.step(
+            &input_nav,
+            || match perception.confirm(&input) {
+                Ok(Some(check)) => {
+                    pending_ms += check.compute_ms.max(0.0);
+                    compute_total += check.compute_ms.max(0.0);
+                    Ok(Some(check.detections))
+                }
+                Ok(None) => Ok(None),
+                Err(source) => Err(FlightError::Perception {
+                    name: name.clone(),
+                    frame: frames - 1,
+                    source,
+                }),
+            },
+            &|bbox| true_sign(&truth, bbox).map(|g| (g.class, g.depth)),
+        )?;
+        confirmation_reads.extend(step.reads);
+        events.extend(step.events.into_iter().map(|what| Event {
+            t,
+            x: pose.x,
+            y: pose.y,
+            what,
+        }));
+        let landed = step.command == Some(NavCommand::Land);
+        if let Some(c @ (NavCommand::TurnLeft | NavCommand::TurnRight)) = step.command {
+            target_yaw = turn_target(pose.yaw, c == NavCommand::TurnLeft);
+        }
+        mode = navigator.mode();
         speed = match mode {
-            Mode::Cruise => nav.v_max.min(nav.react_distance / dt_avg.unwrap_or(dt)),
+            Mode::Cruise => nav.cruise_speed(dt_avg.unwrap_or(dt)),
             _ => 0.0,
         };
-        if landed {
-            mode = Mode::Done;
-        }
         if let Some(obs) = observer.as_mut() {
             obs(&FrameView {
                 index: frames - 1,
@@ -516,6 +246,11 @@ pub fn fly(
                 truth: &truth,
                 detections: &percept.detections,
                 mode,
+                decision_s: t,
+                odometer: odo,
+                yaw: decided_yaw,
+                pedestrian_close: ped_close,
+                command: step.command,
             });
         }
         let last_t = track.last().map_or(0.0, |p| p.t);
@@ -565,8 +300,8 @@ pub fn fly(
         sign_frames,
         sign_hits,
         false_detections,
-        confirmations,
-        rejections,
+        confirmations: navigator.confirmations(),
+        rejections: navigator.rejections(),
         confirmation_reads,
         perception_counts: perception.counts(),
         track,

@@ -3,7 +3,6 @@
 use crate::maze::{Maze, cell_center};
 use crate::render::Pose;
 use crate::texture::{hash_n, unit};
-use std::f64::consts::TAU;
 
 /// A per-seed random number in `[0, 1)`.
 pub(super) fn rnd(seed: u64, k: i64) -> f64 {
@@ -45,10 +44,8 @@ pub fn collides(maze: &Maze, x: f64, y: f64, radius: f64) -> bool {
     false
 }
 
-pub(super) fn wrap(a: f64) -> f64 {
-    let a = a.rem_euclid(TAU);
-    if a > std::f64::consts::PI { a - TAU } else { a }
-}
+/// Yaw wrapping, shared with the navigator.
+pub(super) use frugal_nav::heading::wrap;
 
 #[cfg(test)]
 mod tests {

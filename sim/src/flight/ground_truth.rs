@@ -15,11 +15,6 @@ pub(super) fn true_sign<'t>(truth: &'t FrameTruth, bbox: &BBox) -> Option<&'t Si
         .map(|(_, s)| s)
 }
 
-/// ", truly X m" for an event, when the renderer knows the distance.
-pub(super) fn truly(true_dist: Option<f64>) -> String {
-    true_dist.map_or_else(String::new, |d| format!(", truly {d:.2} m"))
-}
-
 /// In-loop detection quality against the renderer's ground truth.
 pub(super) fn score(
     truth: &FrameTruth,

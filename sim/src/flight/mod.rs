@@ -13,19 +13,18 @@
 //!
 //! The parts: the loop ([`fly`]), its parameters ([`FlightConfig`], [`NavConfig`]),
 //! what it produces ([`FlightResult`], [`Outcome`], [`FrameView`]), the drone's place
-//! in the maze ([`start_pose`], [`collides`]), the signs read ahead that it acts on
-//! (`sighting`), and its readings against the renderer's ground truth
+//! in the maze ([`start_pose`], [`collides`]), and its readings against the renderer's ground truth
 //! (`ground_truth`).
 mod closed_loop;
 mod config;
 mod geometry;
 mod ground_truth;
 mod result;
-mod sighting;
 
 pub use closed_loop::fly;
 pub use config::{FlightConfig, NavConfig};
 pub use geometry::{collides, start_pose};
 pub use result::{
-    ConfirmationRead, Event, FlightError, FlightResult, FrameView, Mode, Outcome, TrackPoint,
+    ConfirmationRead, Event, FlightError, FlightResult, FrameView, Mode, NavCommand, Outcome,
+    TrackPoint,
 };

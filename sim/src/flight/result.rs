@@ -4,7 +4,7 @@
 //! ([`FlightError`]).
 use crate::perception::{DeviceProfile, PerceptionError};
 use crate::render::{FrameTruth, Pose};
-use frugal_data::NavAction;
+pub use frugal_nav::{ConfirmationRead, Mode, NavCommand};
 use frugal_runtime::{Detection, FrameRef};
 use thiserror::Error;
 
@@ -52,22 +52,6 @@ impl Outcome {
             }
         }
     }
-}
-
-/// The navigator's state.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Mode {
-    /// Flying along the corridor.
-    Cruise,
-    /// Hovering while a pedestrian is in view in a WAIT zone.
-    HoldForPedestrian,
-    /// Turning in place towards a new heading.
-    Turning,
-    /// Hovering at a WAIT sign.
-    Waiting,
-    /// Landed (or crashed); the flight is over.
-    Done,
 }
 
 /// A point of the trajectory.
@@ -160,26 +144,6 @@ pub struct FlightResult {
     pub events: Vec<Event>,
 }
 
-/// One confirmation of a sighting by the most accurate detector
-/// ([`Perception::confirm`]), next to what the renderer knows.
-///
-/// [`Perception::confirm`]: crate::Perception::confirm
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct ConfirmationRead {
-    /// Simulated time, s.
-    pub t: f64,
-    /// The sighting's action before this reading.
-    pub sighting: NavAction,
-    /// The turn or STOP sign read at the sighting's spot (`None`: none there).
-    pub read: Option<NavAction>,
-    /// Its distance from its box height, metres.
-    pub read_m: Option<f64>,
-    /// What the sign under the read box (the one it overlaps most) tells the drone to do …
-    pub truth: Option<NavAction>,
-    /// … and its depth, metres.
-    pub true_m: Option<f64>,
-}
-
 /// What an observer sees of each processed frame.
 pub struct FrameView<'a> {
     /// Frame index.
@@ -196,6 +160,16 @@ pub struct FrameView<'a> {
     pub detections: &'a [Detection],
     /// The navigator's mode after deciding on this frame.
     pub mode: Mode,
+    /// Time of the decision on this frame, s.
+    pub decision_s: f64,
+    /// Distance flown at the decision, m.
+    pub odometer: f64,
+    /// Heading given to the navigator at the decision, rad.
+    pub yaw: f64,
+    /// A pedestrian was in view within the navigator's pedestrian distance.
+    pub pedestrian_close: bool,
+    /// The command the navigator issued on this frame.
+    pub command: Option<NavCommand>,
 }
 
 /// Why a flight could not be run (a failed flight is not an error: see [`Outcome`]).

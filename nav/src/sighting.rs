@@ -9,53 +9,53 @@ use frugal_runtime::Detection;
 /// per processed frame that neither reads it nor carries a tracked box onto it, so
 /// only a sign read on most recent detection frames reaches `confirm_frames`.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Sighting {
-    pub(super) action: NavAction,
-    pub(super) at: f64,
-    pub(super) dist: f64,
+pub(crate) struct Sighting {
+    pub(crate) action: NavAction,
+    pub(crate) at: f64,
+    pub(crate) dist: f64,
     /// The renderer's depth of the sign under the last reading's box, when its box
     /// overlaps one: not used to navigate, only to report how far off a reading was.
-    pub(super) true_dist: Option<f64>,
-    pub(super) support: f64,
+    pub(crate) true_dist: Option<f64>,
+    pub(crate) support: f64,
     /// The highest support reached; a sighting that reached `confirm_frames` is
     /// kept (and acted on) even when the sign is no longer readable close up.
-    pub(super) peak: f64,
+    pub(crate) peak: f64,
     /// Confirmed by the perception's most accurate detector ([`Perception::confirm`]),
     /// or by its readings alone when it has nothing more accurate: only a verified
     /// sighting is acted on.
     ///
     /// [`Perception::confirm`]: crate::Perception::confirm
-    pub(super) verified: bool,
+    pub(crate) verified: bool,
     /// Its action was read by the most accurate detector: readings of any turn or STOP
     /// at its spot support it (a cheap detector that mirrors an arrow steadily still
     /// places it right).
-    pub(super) settled: bool,
+    pub(crate) settled: bool,
     /// The most accurate detector's readings of it so far, by action
     /// ([`action_index`]): re-read every [`RECONFIRM_EVERY`] metres while it is
     /// approached, the majority decides its action (one accurate reading of a small
     /// far arrow can be mirrored too).
-    pub(super) votes: [f64; 4],
+    pub(crate) votes: [f64; 4],
     /// Re-readings by the most accurate detector that found no turn or STOP sign at its
     /// spot. A sign it once read can be missed on a frame, so one such reading abstains;
     /// but once they outnumber the votes of its action, the first reading was a false
     /// alarm and the sighting is dropped (without this rule, a confirmed false "turn
     /// left" on a wall, never read again over 2.4 m, turned the drone into that wall;
     /// rule added in a931b6b).
-    pub(super) blanks: f64,
+    pub(crate) blanks: f64,
     /// Odometer at its last confirmation.
-    pub(super) confirmed_at: f64,
+    pub(crate) confirmed_at: f64,
     /// A tracker carried a box onto it this frame: its support does not fade.
-    pub(super) held: bool,
+    pub(crate) held: bool,
     /// Least-squares fit of the distance read against the odometer over the
     /// sighting's readings: a sign that stands still comes closer by as much as the
     /// drone flies (slope −1). A far sign whose box a detector cannot draw small enough
     /// is read at the same distance however far the drone flies (slope ≈ 0): its spot
     /// moves with the drone, and acting on it turns the drone metres early.
-    pub(super) fit: LineFit,
+    pub(crate) fit: LineFit,
 }
 
 /// Per-frame decay of a sighting's support.
-pub(super) const SUPPORT_DECAY: f64 = 0.8;
+pub(crate) const SUPPORT_DECAY: f64 = 0.8;
 /// A sighting is acted on only once its readings span this much flight, metres …
 const MIN_SPAN: f64 = 0.5;
 /// … and its distance shrinks at least this fast per metre flown.
@@ -69,14 +69,14 @@ const RESTART_SPAN: f64 = 1.0;
 const RESTART_APPROACH: f64 = 0.25;
 /// A confirmed sign is read again by the most accurate detector every this many
 /// metres flown until the drone acts on it.
-pub(super) const RECONFIRM_EVERY: f64 = 1.0;
+pub(crate) const RECONFIRM_EVERY: f64 = 1.0;
 
 /// One reading per sign: a detection is dropped when a higher-scoring one of any class
 /// covers the same box (IoU ≥ 0.5). The detectors suppress overlaps per class, so a
 /// WAIT pictogram can come back as WAIT at 0.9 and as a turn at 0.55; without this,
 /// a confirmation found the turn among the reference detector's boxes and the drone
 /// turned 21 m early into a wall (hard maze, tx2-like device; fixed in a09cb98).
-pub(super) fn outranked_dropped(detections: &[Detection]) -> impl Iterator<Item = &Detection> {
+pub(crate) fn outranked_dropped(detections: &[Detection]) -> impl Iterator<Item = &Detection> {
     detections.iter().filter(move |d| {
         !detections
             .iter()
@@ -86,7 +86,7 @@ pub(super) fn outranked_dropped(detections: &[Detection]) -> impl Iterator<Item 
 
 /// How far apart (metres) two readings of a sign `dist` ahead may place it and still
 /// be the same sign: box heights are read to about 15 %.
-pub(super) fn spot_tolerance(dist: f64) -> f64 {
+pub(crate) fn spot_tolerance(dist: f64) -> f64 {
     0.5 + 0.15 * dist
 }
 
@@ -101,14 +101,14 @@ fn action_index(a: NavAction) -> usize {
 
 /// Running least-squares line through (odometer, distance read) points.
 #[derive(Clone, Copy, Debug, Default)]
-pub(super) struct LineFit {
-    pub(super) n: f64,
+pub(crate) struct LineFit {
+    pub(crate) n: f64,
     sx: f64,
     sy: f64,
     sxx: f64,
     sxy: f64,
     x_min: f64,
-    pub(super) x_max: f64,
+    pub(crate) x_max: f64,
 }
 
 impl LineFit {
@@ -133,20 +133,20 @@ impl LineFit {
     }
 
     /// Odometer span of the points, metres.
-    pub(super) fn span(&self) -> f64 {
+    pub(crate) fn span(&self) -> f64 {
         self.x_max - self.x_min
     }
 
     /// How fast the distance read shrinks per metre flown (1 for a sign standing
     /// still); `None` with fewer than two distinct odometer readings.
-    pub(super) fn approach(&self) -> Option<f64> {
+    pub(crate) fn approach(&self) -> Option<f64> {
         let var = self.n * self.sxx - self.sx * self.sx;
         (var > 1e-9 * self.n * self.n).then(|| -(self.n * self.sxy - self.sx * self.sy) / var)
     }
 }
 
 impl Sighting {
-    pub(super) fn new(action: NavAction, odo: f64, dist: f64, true_dist: Option<f64>) -> Self {
+    pub(crate) fn new(action: NavAction, odo: f64, dist: f64, true_dist: Option<f64>) -> Self {
         Self {
             action,
             at: odo + dist,
@@ -166,7 +166,7 @@ impl Sighting {
 
     /// Another reading of this sign, `dist` ahead at odometer `odo` (`true_dist`: see
     /// [`Sighting::true_dist`]).
-    pub(super) fn read(&mut self, odo: f64, dist: f64, true_dist: Option<f64>) {
+    pub(crate) fn read(&mut self, odo: f64, dist: f64, true_dist: Option<f64>) {
         self.fit.add(odo, dist);
         if self.fit.span() >= RESTART_SPAN
             && self.fit.approach().is_some_and(|a| a < RESTART_APPROACH)
@@ -187,13 +187,13 @@ impl Sighting {
     /// support (a weak false detection carried for `M` frames would otherwise build
     /// the support of a measured sign and be confirmed), and its size does not place
     /// the sign.
-    pub(super) fn hold(&mut self) {
+    pub(crate) fn hold(&mut self) {
         self.held = true;
     }
 
     /// The most accurate detector read it as `action`, `dist` ahead at `odo`: a vote,
     /// and the majority of the votes is its action (a tie goes to this reading).
-    pub(super) fn confirmed(
+    pub(crate) fn confirmed(
         &mut self,
         action: NavAction,
         odo: f64,
@@ -212,7 +212,7 @@ impl Sighting {
     }
 
     /// Read over enough flight to tell, and coming closer as a standing sign does.
-    pub(super) fn stands_still(&self) -> bool {
+    pub(crate) fn stands_still(&self) -> bool {
         self.fit.span() >= MIN_SPAN && self.fit.approach().is_some_and(|a| a >= MIN_APPROACH)
     }
 }

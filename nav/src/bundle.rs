@@ -1,0 +1,404 @@
+//! The bundle's perception ([`BundlePerception`]): the policy bundle's [`Pilot`]
+//! (controller + KLT trackers) deciding per frame, the chosen variant run through ONNX
+//! Runtime, and the reference variant's re-reading of a frame on the navigator's
+//! request. The maze simulator flies it (`frugal_sim::AdaptivePerception`) and the
+//! drone-side program runs it on camera frames.
+//!
+//! Opening checks the bundle's files first ([`verify_files`]): every ONNX graph it
+//! names must hash to what the bundle records, so a bundle whose graphs were swapped or
+//! damaged is refused before the first frame.
+use frugal_runtime::onnx::OrtDetector;
+use frugal_runtime::pilot::{Carry, Pilot};
+use frugal_runtime::track::Pyramid;
+use frugal_runtime::{Bundle, Decision, Detection, FrameRef, Trigger};
+use sha2::{Digest, Sha256};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The bundle file inside a bundle folder (written by `frugal bundle write`).
+pub const BUNDLE_FILE: &str = "policy.frpb";
+
+/// The score at which a CNN detection is reported: the CNN family's `T_c`.
+pub const CNN_REPORT_SCORE: f32 = 0.5;
+
+/// What perception returns for one frame.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Percept {
+    /// Sign detections in image pixels, on the detector family's score scale.
+    pub detections: Vec<Detection>,
+    /// Compute time this frame consumed on the machine that ran it, milliseconds.
+    /// The flight multiplies it by the device profile's slowdown to advance the
+    /// simulated clock.
+    pub compute_ms: f64,
+    /// The detections are boxes a tracker carried from an earlier frame's detection,
+    /// not measured on this one: they say a sign is still there, but their size (and
+    /// so the distance read from it) is the tracker's prediction, which drifts and
+    /// keeps a misdrawn box's error. The navigator places signs by measured boxes only.
+    pub tracked: bool,
+}
+
+/// An error from a perception implementation (boxed so any detector's error fits).
+pub type PerceptionError = Box<dyn std::error::Error + Send + Sync>;
+
+/// A bundle file that does not match the bundle.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum BundleError {
+    /// A file cannot be read.
+    #[error("{path}: {message}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        message: String,
+    },
+    /// The bundle file does not parse.
+    #[error("{path}: not a valid bundle: {message}")]
+    Parse {
+        /// The bundle file.
+        path: PathBuf,
+        /// The reader's message.
+        message: String,
+    },
+    /// A file the bundle names is missing.
+    #[error("{path}: missing (named by {bundle})")]
+    Missing {
+        /// The file.
+        path: PathBuf,
+        /// The bundle file.
+        bundle: PathBuf,
+    },
+    /// A file's SHA-256 differs from the one the bundle records.
+    #[error("{path}: SHA-256 {actual} does not match the bundle's {expected}")]
+    Hash {
+        /// The file.
+        path: PathBuf,
+        /// The hash the bundle records.
+        expected: String,
+        /// The file's hash.
+        actual: String,
+    },
+}
+
+/// Bundle metadata keys naming a further file and its SHA-256 (`file:<path>`), as
+/// `frugal bundle write` records the second graph of each ONNX variant.
+pub const FILE_KEY: &str = "file:";
+
+/// Lower-case hex of `bytes`.
+pub fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Check the bundle folder `dir`: its bundle parses and every file it names (each
+/// variant's ONNX graph, and the `file:` metadata entries) exists and hashes to what
+/// it records. Returns the files checked.
+pub fn verify_files(dir: &Path) -> Result<Vec<PathBuf>, BundleError> {
+    let file = dir.join(BUNDLE_FILE);
+    let io = |path: &Path, e: std::io::Error| BundleError::Io {
+        path: path.to_owned(),
+        message: e.to_string(),
+    };
+    let bytes = std::fs::read(&file).map_err(|e| io(&file, e))?;
+    let bundle = Bundle::parse(&bytes).map_err(|e| BundleError::Parse {
+        path: file.clone(),
+        message: e.to_string(),
+    })?;
+    let mut refs: Vec<(String, String)> = bundle
+        .variants()
+        .filter(|(_, v)| !v.onnx_file.is_empty())
+        .map(|(_, v)| (v.onnx_file.to_owned(), hex(&v.sha256)))
+        .collect();
+    refs.extend(bundle.metadata().filter_map(|(k, v)| {
+        k.strip_prefix(FILE_KEY)
+            .map(|f| (f.to_owned(), v.to_owned()))
+    }));
+    let mut checked = Vec::new();
+    for (rel, expected) in refs {
+        let path = dir.join(&rel);
+        if !path.is_file() {
+            return Err(BundleError::Missing {
+                path,
+                bundle: file.clone(),
+            });
+        }
+        let data = std::fs::read(&path).map_err(|e| io(&path, e))?;
+        let actual = hex(&Sha256::digest(&data));
+        if actual != expected {
+            return Err(BundleError::Hash {
+                path,
+                expected,
+                actual,
+            });
+        }
+        checked.push(path);
+    }
+    Ok(checked)
+}
+
+/// The adaptive runtime: the bundle's policy, controller, trackers and ONNX variants.
+pub struct BundlePerception {
+    bundle: Bundle<'static>,
+    pilot: Pilot<'static, 4, 64>,
+    detectors: Vec<OrtDetector>,
+    prev: Vec<u8>,
+    cur: Vec<u8>,
+    size: (usize, usize),
+    have_prev: bool,
+    label: String,
+    /// Runs and compute time (µs) per variant so far (confirmations included).
+    runs_per_variant: Vec<VariantRuns>,
+    /// Frames detected so far, by the controller's trigger (indexed as
+    /// [`Trigger::ALL`]), and confirmations.
+    detections_per_trigger: [u64; Trigger::ALL.len()],
+    confirmations: u64,
+    /// Frames the pilot only tracked.
+    tracked_frames: u64,
+    /// Compute time of tracked frames and of detection frames, µs (pyramid, tracking
+    /// and the decision included).
+    tracked_us: u64,
+    detected_us: u64,
+    /// The variants run on the last frame [`BundlePerception::perceive`] processed.
+    last_run: Vec<usize>,
+}
+
+impl BundlePerception {
+    /// Open the bundle in `dir` and every ONNX variant it names (up front, so opening
+    /// is not counted as flight time). The bundle bytes live as long as the process
+    /// (a few kilobytes), since the zero-copy reader borrows them.
+    ///
+    /// Fails, naming the file, when a graph does not hash to what the bundle records
+    /// ([`verify_files`]).
+    pub fn open(dir: &Path, threads: usize) -> Result<Self, PerceptionError> {
+        verify_files(dir)?;
+        let path = dir.join(BUNDLE_FILE);
+        let bytes = std::fs::read(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+        let bundle = Bundle::parse(bytes).map_err(|e| format!("{}: {e}", path.display()))?;
+        let mut detectors = Vec::new();
+        for (_, v) in bundle.variants() {
+            let graph = dir.join(v.onnx_file);
+            let vdir = graph.parent().ok_or_else(|| {
+                format!("{}: variant {} has no ONNX file", path.display(), v.name)
+            })?;
+            detectors.push(OrtDetector::open(vdir, threads)?);
+        }
+        let n = detectors.len();
+        Ok(Self {
+            bundle,
+            pilot: Pilot::new(bundle),
+            detectors,
+            prev: Vec::new(),
+            cur: Vec::new(),
+            size: (0, 0),
+            have_prev: false,
+            label: format!(
+                "adaptive-{}",
+                dir.file_name()
+                    .map_or("bundle".into(), |n| n.to_string_lossy())
+            ),
+            runs_per_variant: vec![VariantRuns::default(); n],
+            detections_per_trigger: [0; Trigger::ALL.len()],
+            confirmations: 0,
+            tracked_frames: 0,
+            tracked_us: 0,
+            detected_us: 0,
+            last_run: Vec::new(),
+        })
+    }
+
+    /// Carry detections from `carry`'s bucket up ([`Pilot::with_carry`]; the default
+    /// is [`Carry::Optimal`]). Call before the first frame.
+    pub fn with_carry(mut self, carry: Carry) -> Self {
+        self.pilot = Pilot::new(self.bundle).with_carry(carry);
+        let kind = match carry {
+            Carry::Optimal => "",
+            Carry::GoodEnough => "-carry-ge",
+            Carry::Reported => "-carry-reported",
+        };
+        self.label.push_str(kind);
+        self
+    }
+
+    /// The parsed bundle.
+    pub fn bundle(&self) -> &Bundle<'static> {
+        &self.bundle
+    }
+
+    /// The names of the variants run on the last frame [`BundlePerception::perceive`]
+    /// processed, in bundle order (empty: the frame was tracked).
+    pub fn last_variants(&self) -> Vec<&'static str> {
+        self.last_run
+            .iter()
+            .filter_map(|&i| self.bundle.variant(i as u16).map(|v| v.name))
+            .collect()
+    }
+
+    /// A short label: `adaptive-<bundle folder>`.
+    pub fn name(&self) -> String {
+        self.label.clone()
+    }
+
+    /// Process frame number `index` (0, 1, 2, … in processing order): the policy
+    /// decides to detect (with which variant) or to track, and the detections the
+    /// drone acts on come back with the compute time.
+    pub fn perceive(
+        &mut self,
+        frame: FrameRef<'_>,
+        index: u64,
+    ) -> Result<Percept, PerceptionError> {
+        let started = Instant::now();
+        let (w, h) = (frame.width as usize, frame.height as usize);
+        let levels = 3;
+        if (w, h) != self.size {
+            let need = Pyramid::required_len(w, h, levels).ok_or("frame too small to track")?;
+            self.prev = vec![0; need];
+            self.cur = vec![0; need];
+            self.size = (w, h);
+            self.have_prev = false;
+        }
+        let mut cur = Pyramid::new(&mut self.cur, w, h, levels)?;
+        cur.build_rgb(&frame)?;
+        let prev = if self.have_prev {
+            Some(Pyramid::new(&mut self.prev, w, h, levels)?)
+        } else {
+            None
+        };
+        let runs_before: Vec<u64> = self.runs_per_variant.iter().map(|r| r.runs).collect();
+        let decision = self.pilot.decide(index as u32, prev.as_ref(), &cur);
+        let detections = match decision {
+            Decision::Detect { variant, reason } => {
+                if let Some(n) = self.detections_per_trigger.get_mut(reason as usize) {
+                    *n += 1;
+                }
+                // the first variant, then any the policy asks for on the same frame
+                let (detectors, counts) = (&mut self.detectors, &mut self.runs_per_variant);
+                let (_, mut found) = self.pilot.detect_with(&cur, variant, |variant| {
+                    run_variant(detectors, counts, variant, frame)
+                })?;
+                // the drone acts on reported detections only, as the replay scores them:
+                // those at least the finding variant's T_c
+                let t_c = self.pilot.report_score();
+                found.retain(|d| d.score >= t_c);
+                found
+            }
+            Decision::Track => self.pilot.tracked().collect(),
+        };
+        std::mem::swap(&mut self.prev, &mut self.cur);
+        self.have_prev = true;
+        self.last_run = (self.runs_per_variant.iter().zip(runs_before))
+            .enumerate()
+            .filter(|(_, (r, before))| r.runs > *before)
+            .map(|(i, _)| i)
+            .collect();
+        let elapsed = started.elapsed();
+        let us = u64::try_from(elapsed.as_micros()).unwrap_or(u64::MAX);
+        if decision == Decision::Track {
+            self.tracked_frames += 1;
+            self.tracked_us = self.tracked_us.saturating_add(us);
+        } else {
+            self.detected_us = self.detected_us.saturating_add(us);
+        }
+        Ok(Percept {
+            detections,
+            compute_ms: elapsed.as_secs_f64() * 1e3,
+            tracked: decision == Decision::Track,
+        })
+    }
+
+    /// The bundle's reference variant (the most accurate) on this frame, reporting
+    /// what scores at least its family's `T_c`. The pilot's state is left as it is:
+    /// a confirmation is the navigator's question, not a step of the policy.
+    pub fn confirm(&mut self, frame: FrameRef<'_>) -> Result<Percept, PerceptionError> {
+        let started = Instant::now();
+        self.confirmations += 1;
+        let reference = self.bundle.policy().reference();
+        let t_c = self
+            .bundle
+            .variant_buckets(reference)
+            .map_or(CNN_REPORT_SCORE, |b| b.t_c);
+        let mut detections = run_variant(
+            &mut self.detectors,
+            &mut self.runs_per_variant,
+            reference,
+            frame,
+        )?;
+        detections.retain(|d| d.score >= t_c);
+        Ok(Percept {
+            detections,
+            compute_ms: started.elapsed().as_secs_f64() * 1e3,
+            tracked: false,
+        })
+    }
+
+    /// `frames detected: <trigger>` per controller trigger (the frame's first
+    /// detection; a second one on the same image counts under its variant only),
+    /// `frames tracked`, the compute time of both kinds of frame (`µs on tracked
+    /// frames`, `µs on detection frames`, confirmations not included), `confirmations`,
+    /// and `runs of <variant>` per bundle variant (every detection, second ones and
+    /// confirmations included).
+    pub fn counts(&self) -> Vec<(String, u64)> {
+        let triggers = Trigger::ALL
+            .iter()
+            .zip(self.detections_per_trigger)
+            .map(|(t, n)| (format!("frames detected: {t:?}"), n));
+        let variants =
+            self.bundle
+                .variants()
+                .zip(&self.runs_per_variant)
+                .flat_map(|((_, v), r)| {
+                    [
+                        (format!("runs of {}", v.name), r.runs),
+                        (format!("µs in {}", v.name), r.us),
+                    ]
+                });
+        triggers
+            .chain({
+                let t = self.pilot.track_stats();
+                [
+                    ("boxes tracked".to_string(), u64::from(t.started)),
+                    ("boxes not carried".to_string(), u64::from(t.not_carried)),
+                    (
+                        "trackers failed to start".to_string(),
+                        u64::from(t.failed_to_start),
+                    ),
+                    ("tracks lost".to_string(), u64::from(t.lost)),
+                ]
+            })
+            .chain([
+                ("frames tracked".to_string(), self.tracked_frames),
+                ("µs on tracked frames".to_string(), self.tracked_us),
+                ("µs on detection frames".to_string(), self.detected_us),
+                ("confirmations".to_string(), self.confirmations),
+            ])
+            .chain(variants)
+            .collect()
+    }
+}
+
+/// How often one variant ran, and for how long.
+#[derive(Clone, Copy, Debug, Default)]
+struct VariantRuns {
+    runs: u64,
+    us: u64,
+}
+
+/// Run the bundle's variant `variant` on `frame`, counting it and its time.
+fn run_variant(
+    detectors: &mut [OrtDetector],
+    counts: &mut [VariantRuns],
+    variant: frugal_runtime::VariantId,
+    frame: FrameRef<'_>,
+) -> Result<Vec<Detection>, PerceptionError> {
+    let v = usize::from(variant);
+    let det = detectors
+        .get_mut(v)
+        .ok_or("the bundle names a variant it has no detector for")?;
+    let started = Instant::now();
+    let found = det.detect(frame)?;
+    if let Some(c) = counts.get_mut(v) {
+        c.runs += 1;
+        let us = u64::try_from(started.elapsed().as_micros()).unwrap_or(u64::MAX);
+        c.us = c.us.saturating_add(us);
+    }
+    Ok(found)
+}

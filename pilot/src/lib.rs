@@ -1,0 +1,456 @@
+//! `frugal-pilot`: the program that runs on the drone's companion computer, next to
+//! the flight controller. It reads the camera (a V4L2 device, an RTP/UDP stream, a
+//! video file or an image folder, [`source`]), runs the policy bundle on every frame
+//! it can (the controller choosing an ONNX variant or the KLT tracker,
+//! [`frugal_nav::BundlePerception`]), turns confirmed signs into commands with the
+//! navigator the maze simulator flies ([`frugal_nav::Navigator`]), and writes one JSON
+//! line per processed frame and MAVLink 2 to the autopilot ([`link`]).
+//!
+//! The distance flown, which the navigator places signs by, comes from a flight log
+//! (`--odometry FILE`, as `frugal fly --record` writes next to its footage) or from dead
+//! reckoning of the commanded speed (the navigator's cruise speed) and yaw rate.
+//! A pedestrian detector is not part of the bundle: without a flight log the
+//! navigator is told no pedestrian is close.
+#![deny(missing_docs)]
+
+pub mod config;
+pub mod link;
+pub mod source;
+
+use config::PilotConfig;
+use frugal_nav::heading::{reached, turn_target, wrap};
+use frugal_nav::{BundlePerception, FlightLog, Mode, NavCommand, NavInput, Navigator, Optics};
+use frugal_runtime::FrameRef;
+use serde_json::json;
+use source::{Input, InputStats, Mailbox, Reader};
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+/// The command line.
+#[derive(clap::Parser, Clone, Debug)]
+#[command(
+    name = "frugal-pilot",
+    about = "Camera in, the policy bundle's decisions, MAVLink commands out"
+)]
+pub struct Args {
+    /// The bundle folder (`policy.frpb` and `onnx/<variant>/`, from `frugal bundle write`).
+    #[arg(long)]
+    pub bundle: PathBuf,
+    /// Video file, image folder, V4L2 device (`/dev/video0`), stream URL (`udp://…`,
+    /// `rtp://…`) or SDP file.
+    #[arg(long)]
+    pub input: String,
+    /// Configuration file (TOML; see the guide). Defaults: the simulator's camera and
+    /// signs.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Frame rate of an image folder.
+    #[arg(long, default_value_t = 30.0)]
+    pub fps: f64,
+    /// Files and folders: hand every frame to perception (no drops) instead of pacing
+    /// them at their timestamps as a camera would (the default).
+    #[arg(long)]
+    pub every_frame: bool,
+    /// Flight log (CSV from `frugal fly --record`): the distance flown, heading and
+    /// pedestrian proximity per frame, instead of dead reckoning.
+    #[arg(long)]
+    pub odometry: Option<PathBuf>,
+    /// Where the JSON lines go: `-` for stdout, a file, or `none`.
+    #[arg(long, default_value = "-")]
+    pub json: String,
+    /// MAVLink address: `udpout:HOST:PORT`, `udpin:ADDR:PORT`, `serial:DEVICE:BAUD`.
+    #[arg(long)]
+    pub mavlink: Option<String>,
+    /// ONNX Runtime intra-op threads per variant.
+    #[arg(long, default_value_t = 1)]
+    pub threads: usize,
+}
+
+/// Why the pilot could not start or had to stop.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PilotError {
+    /// The configuration file.
+    #[error(transparent)]
+    Config(#[from] config::ConfigError),
+    /// The bundle, its files, or a variant.
+    #[error("bundle {path}: {message}")]
+    Bundle {
+        /// The bundle folder.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// The flight log.
+    #[error(transparent)]
+    Log(#[from] frugal_nav::flight_log::LogError),
+    /// The MAVLink link.
+    #[error(transparent)]
+    Link(#[from] link::LinkError),
+    /// The JSON output.
+    #[error("{path}: {message}")]
+    Output {
+        /// The output.
+        path: String,
+        /// What went wrong.
+        message: String,
+    },
+    /// Perception failed on a frame.
+    #[error("perception failed on frame {frame}: {message}")]
+    Perception {
+        /// The frame.
+        frame: u64,
+        /// Why.
+        message: String,
+    },
+    /// A bad argument.
+    #[error("{0}")]
+    Usage(String),
+}
+
+/// How a run went.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Summary {
+    /// Frames processed.
+    pub frames: u64,
+    /// Frames decoded by the reader.
+    pub decoded: u64,
+    /// Frames overwritten before perception took them.
+    pub drops: u64,
+    /// Corrupt frames skipped.
+    pub corrupt: u64,
+    /// Reconnections of a live input.
+    pub reconnects: u64,
+    /// Commands issued, in order, with the frame each was decided on.
+    pub commands: Vec<(u64, NavCommand)>,
+    /// MAVLink heartbeats sent.
+    pub heartbeats: u64,
+    /// Processed frames per second of wall-clock time.
+    pub fps: f64,
+    /// Median time from a frame's arrival to its decision (and command), ms.
+    pub latency_p50_ms: f64,
+    /// 95th percentile of the same, ms.
+    pub latency_p95_ms: f64,
+    /// Mean compute per processed frame (perception, confirmations included), ms.
+    pub compute_ms_mean: f64,
+    /// Stopped by SIGINT or SIGTERM.
+    pub interrupted: bool,
+    /// Why the input ended early, when it failed.
+    pub input_error: Option<String>,
+}
+
+impl Summary {
+    /// The last line the program prints.
+    pub fn line(&self) -> String {
+        let commands: Vec<&str> = self.commands.iter().map(|(_, c)| c.name()).collect();
+        format!(
+            "frugal-pilot: {}{} frames processed ({} decoded), {} dropped, {} corrupt, {} reconnects, {} commands [{}], {} heartbeats; {:.1} frames/s, arrival to decision P50 {:.1} ms P95 {:.1} ms",
+            if self.interrupted { "stopped: " } else { "" },
+            self.frames,
+            self.decoded,
+            self.drops,
+            self.corrupt,
+            self.reconnects,
+            self.commands.len(),
+            commands.join(", "),
+            self.heartbeats,
+            self.fps,
+            self.latency_p50_ms,
+            self.latency_p95_ms
+        )
+    }
+}
+
+/// The sign's short name for telemetry.
+fn sign_name(class: u16) -> String {
+    match frugal_data::Sign::from_id(class).and_then(|s| s.action()) {
+        Some(frugal_data::NavAction::TurnLeft) => "left".into(),
+        Some(frugal_data::NavAction::TurnRight) => "right".into(),
+        Some(frugal_data::NavAction::Stop) => "stop".into(),
+        Some(frugal_data::NavAction::Wait) => "wait".into(),
+        None => format!("class{class}"),
+    }
+}
+
+fn percentile(sorted: &[f64], q: f64) -> f64 {
+    if sorted.is_empty() {
+        return 0.0;
+    }
+    let i = ((sorted.len() - 1) as f64 * q).round() as usize;
+    sorted[i.min(sorted.len() - 1)]
+}
+
+/// Dead reckoning of the distance flown and the heading from the commands.
+struct Reckoner {
+    odo: f64,
+    yaw: f64,
+    last_t: Option<f64>,
+    dt_avg: Option<f64>,
+}
+
+/// Run the pilot until the input ends, the drone lands, or `stop` is raised (by
+/// SIGINT / SIGTERM in the program). `report` prints one problem line (stderr in the
+/// program).
+pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, PilotError> {
+    let config = match &args.config {
+        Some(path) => PilotConfig::read(path)?,
+        None => PilotConfig::default(),
+    };
+    if !(args.fps.is_finite() && args.fps > 0.0) {
+        return Err(PilotError::Usage(format!(
+            "--fps must be a positive number, not {}",
+            args.fps
+        )));
+    }
+    let input = Input::parse(&args.input, args.fps);
+    let log = args.odometry.as_deref().map(FlightLog::read).transpose()?;
+    // the bundle is checked (every graph's hash) and every variant opened before the
+    // first frame
+    let mut perception =
+        BundlePerception::open(&args.bundle, args.threads).map_err(|e| PilotError::Bundle {
+            path: args.bundle.clone(),
+            message: e.to_string(),
+        })?;
+    let mut link = args
+        .mavlink
+        .as_deref()
+        .map(|a| link::Link::open(a, &config.mavlink, config.nav.yaw_rate_deg))
+        .transpose()?;
+    let mut out: Option<Box<dyn Write>> = match args.json.as_str() {
+        "none" => None,
+        "-" => Some(Box::new(std::io::stdout().lock())),
+        path => Some(Box::new(std::io::BufWriter::new(
+            std::fs::File::create(path).map_err(|e| PilotError::Output {
+                path: path.to_owned(),
+                message: e.to_string(),
+            })?,
+        ))),
+    };
+    let (w, h) = (config.camera.width, config.camera.height);
+    let mut navigator = Navigator::new(
+        &config.nav,
+        config.signs.cell_m,
+        Optics {
+            width: w,
+            focal_px: config.camera.focal(),
+            sign_size: config.signs.size_m,
+        },
+    );
+
+    let reference = {
+        let b = perception.bundle();
+        b.variant(b.policy().reference()).map(|v| v.name)
+    };
+    let mailbox = Arc::new(Mailbox::default());
+    let stats = Arc::new(InputStats::default());
+    let halt = Arc::new(AtomicBool::new(false));
+    let reader = Reader {
+        input,
+        size: (w, h),
+        realtime: !args.every_frame,
+        retry: config.input.clone(),
+        report,
+    };
+    let thread = {
+        let (mailbox, stats, halt) = (Arc::clone(&mailbox), Arc::clone(&stats), Arc::clone(&halt));
+        std::thread::spawn(move || reader.run(&mailbox, &stats, &halt))
+    };
+
+    let started = Instant::now();
+    let mut summary = Summary::default();
+    let mut latencies = Vec::new();
+    let mut compute_total = 0.0;
+    let mut reckoner = Reckoner {
+        odo: 0.0,
+        yaw: 0.0,
+        last_t: None,
+        dt_avg: None,
+    };
+    let mut target_yaw = 0.0;
+    let yaw_rate = config.nav.yaw_rate_deg.to_radians();
+    let result = loop {
+        if stop.load(Ordering::Relaxed) {
+            summary.interrupted = true;
+            break Ok(());
+        }
+        let Some(frame) = mailbox.take(stop) else {
+            summary.interrupted = stop.load(Ordering::Relaxed);
+            break Ok(());
+        };
+        let index = summary.frames;
+        let image = FrameRef {
+            width: w,
+            height: h,
+            rgb: frame.image.as_raw(),
+        };
+        let percept = match perception.perceive(image, index) {
+            Ok(p) => p,
+            Err(e) => {
+                break Err(PilotError::Perception {
+                    frame: frame.index,
+                    message: e.to_string(),
+                });
+            }
+        };
+        let variants = perception.last_variants();
+        let mut compute_ms = percept.compute_ms;
+        // what the navigator is told besides the detections
+        let (t, odometer, yaw, pedestrian_close) = match &log {
+            Some(log) => match log.rows.get(frame.index as usize) {
+                Some(r) => (r.decision_s, r.odometer_m, r.yaw_rad, r.pedestrian_close),
+                None => {
+                    break Err(PilotError::Usage(format!(
+                        "{}: no row for frame {}",
+                        args.odometry
+                            .as_deref()
+                            .unwrap_or_else(|| "".as_ref())
+                            .display(),
+                        frame.index
+                    )));
+                }
+            },
+            None => {
+                let t = started.elapsed().as_secs_f64();
+                let dt = t - reckoner.last_t.unwrap_or(t);
+                if dt > 0.0 {
+                    let avg = reckoner.dt_avg.map_or(dt, |a| a * 0.7 + dt * 0.3);
+                    reckoner.dt_avg = Some(avg);
+                    match navigator.mode() {
+                        Mode::Cruise => reckoner.odo += config.nav.cruise_speed(avg) * dt,
+                        Mode::Turning => {
+                            let diff = wrap(target_yaw - reckoner.yaw);
+                            let turn = (yaw_rate * dt).min(diff.abs());
+                            reckoner.yaw = wrap(reckoner.yaw + turn * diff.signum());
+                        }
+                        _ => {}
+                    }
+                }
+                reckoner.last_t = Some(t);
+                (t, reckoner.odo, reckoner.yaw, false)
+            }
+        };
+        let turn_done = navigator.mode() == Mode::Turning && reached(target_yaw, yaw);
+        let nav_input = NavInput {
+            t,
+            odometer,
+            turn_done,
+            pedestrian_close,
+            detections: &percept.detections,
+            tracked: percept.tracked,
+        };
+        let mut confirmed = Vec::new();
+        let step = navigator.step(
+            &nav_input,
+            || {
+                let check = perception.confirm(image)?;
+                compute_ms += check.compute_ms;
+                confirmed.extend(reference);
+                Ok::<_, frugal_nav::PerceptionError>(Some(check.detections))
+            },
+            &|_| None,
+        );
+        let step = match step {
+            Ok(s) => s,
+            Err(e) => {
+                break Err(PilotError::Perception {
+                    frame: frame.index,
+                    message: e.to_string(),
+                });
+            }
+        };
+        if let Some(c @ (NavCommand::TurnLeft | NavCommand::TurnRight)) = step.command {
+            target_yaw = turn_target(yaw, c == NavCommand::TurnLeft);
+        }
+        // out: telemetry, the command, then the JSON line
+        let mut link_error = None;
+        if let Some(link) = link.as_mut() {
+            let usec = (frame.time_s.max(0.0) * 1e6) as u64;
+            for d in percept.detections.iter().take(4) {
+                let (cx, _) = d.bbox.center();
+                let offset = (cx - w as f32 / 2.0) / w as f32;
+                let dist = navigator.distance_of(d) as f32;
+                if let Err(e) = link.detection(usec, &sign_name(d.class), offset, dist, d.score) {
+                    link_error = Some(e);
+                }
+            }
+            if let Some(c) = step.command
+                && let Err(e) = link.command(c)
+            {
+                link_error = Some(e);
+            }
+        }
+        let latency_ms = frame.arrived.elapsed().as_secs_f64() * 1e3;
+        if let Some(e) = link_error {
+            report(&e.to_string());
+        }
+        latencies.push(latency_ms);
+        compute_total += compute_ms;
+        summary.frames += 1;
+        if let Some(c) = step.command {
+            summary.commands.push((frame.index, c));
+        }
+        if let Some(out) = out.as_mut() {
+            let boxes: Vec<_> = percept
+                .detections
+                .iter()
+                .map(|d| {
+                    json!({
+                        "class": d.class,
+                        "sign": sign_name(d.class),
+                        "score": d.score,
+                        "box": [d.bbox.x1, d.bbox.y1, d.bbox.x2, d.bbox.y2],
+                    })
+                })
+                .collect();
+            let line = json!({
+                "frame": frame.index,
+                "time_s": frame.time_s,
+                "decision": if percept.tracked { "track" } else { "detect" },
+                "variants": variants,
+                "confirmed_by": confirmed,
+                "boxes": boxes,
+                "action": step.command.map(NavCommand::name),
+                "mode": navigator.mode(),
+                "events": step.events,
+                "compute_ms": compute_ms,
+                "latency_ms": latency_ms,
+            });
+            if let Err(e) = writeln!(out, "{line}") {
+                break Err(PilotError::Output {
+                    path: args.json.clone(),
+                    message: e.to_string(),
+                });
+            }
+        }
+        if navigator.mode() == Mode::Done {
+            break Ok(());
+        }
+    };
+    halt.store(true, Ordering::Relaxed);
+    let _ = thread.join();
+    let elapsed = started.elapsed().as_secs_f64();
+    latencies.sort_by(f64::total_cmp);
+    summary.decoded = stats.frames.load(Ordering::Relaxed);
+    summary.drops = mailbox.drops();
+    summary.corrupt = stats.corrupt.load(Ordering::Relaxed);
+    summary.reconnects = stats.reconnects.load(Ordering::Relaxed);
+    summary.heartbeats = link.as_ref().map_or(0, link::Link::heartbeats);
+    summary.fps = if elapsed > 0.0 {
+        summary.frames as f64 / elapsed
+    } else {
+        0.0
+    };
+    summary.latency_p50_ms = percentile(&latencies, 0.5);
+    summary.latency_p95_ms = percentile(&latencies, 0.95);
+    summary.compute_ms_mean = compute_total / summary.frames.max(1) as f64;
+    summary.input_error = mailbox.error();
+    drop(link);
+    if let Some(out) = out.as_mut() {
+        let line = json!({ "summary": summary });
+        let _ = writeln!(out, "{line}").and_then(|()| out.flush());
+    }
+    result.map(|()| summary)
+}
