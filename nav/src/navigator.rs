@@ -129,6 +129,8 @@ pub struct Navigator {
     sightings: Vec<Sighting>,
     confirmations: u64,
     rejections: u64,
+    /// What the drone does on each class, by class id.
+    actions: Vec<Option<NavAction>>,
 }
 
 /// ", truly X m" for an event, when a ground truth knows the distance.
@@ -152,7 +154,22 @@ impl Navigator {
             sightings: Vec::new(),
             confirmations: 0,
             rejections: 0,
+            actions: Sign::ALL.iter().map(|s| s.action()).collect(),
         }
+    }
+
+    /// What the drone does on each class, by class id (`None`: nothing); classes past
+    /// the end mean nothing. The default is the ten synthetic signs' meanings; a
+    /// detector of other classes needs its own table (a dataset's
+    /// [`ClassInfo::action`](frugal_data::ClassInfo::action)s in class order).
+    pub fn with_actions(mut self, actions: Vec<Option<NavAction>>) -> Self {
+        self.actions = actions;
+        self
+    }
+
+    /// The meaning of class `class`.
+    pub fn action_of(&self, class: u16) -> Option<NavAction> {
+        self.actions.get(usize::from(class)).copied().flatten()
     }
 
     /// The current mode.
@@ -224,9 +241,10 @@ impl Navigator {
             Mode::Cruise | Mode::HoldForPedestrian => {
                 self.mode = Mode::Cruise;
                 let (turn_armed_at, wait_zone_until) = (self.turn_armed_at, self.wait_zone_until);
+                let actions = self.actions.clone();
                 // what a detection would make the drone do, and how far away the sign is
                 let reading = |d: &Detection| {
-                    let action = Sign::from_id(d.class)?.action()?;
+                    let action = actions.get(usize::from(d.class)).copied().flatten()?;
                     let dist =
                         optics.focal_px * optics.sign_size / f64::from(d.bbox.height()).max(1e-3);
                     let (cx, _) = d.bbox.center();
@@ -332,7 +350,9 @@ impl Navigator {
                                 sighting: s.action,
                                 read: agrees.map(|((action, _), _)| action),
                                 read_m: agrees.map(|((_, dist), _)| dist),
-                                truth: seen.and_then(|(class, _)| Sign::from_id(class)?.action()),
+                                truth: seen.and_then(|(class, _)| {
+                                    actions.get(usize::from(class)).copied().flatten()
+                                }),
                                 true_m: seen.map(|(_, depth)| depth),
                             });
                             if let Some(((action, dist), _)) = agrees {
@@ -479,5 +499,54 @@ impl Navigator {
             _ => None,
         };
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Frames of one large, centred detection of class 0 until a command comes.
+    fn first_command(navigator: &mut Navigator) -> Option<NavCommand> {
+        let det = Detection {
+            bbox: BBox::new(190.0, 40.0, 290.0, 240.0),
+            score: 0.9,
+            class: 0,
+        };
+        for k in 0..30 {
+            let input = NavInput {
+                t: f64::from(k) * 0.1,
+                odometer: 0.0,
+                turn_done: false,
+                pedestrian_close: false,
+                detections: &[det],
+                tracked: false,
+            };
+            let step = navigator
+                .step(&input, || Ok::<_, ()>(Some(vec![det])), &|_| None)
+                .expect("step");
+            if step.command.is_some() {
+                return step.command;
+            }
+        }
+        None
+    }
+
+    #[test]
+    fn a_class_means_what_the_action_table_says() {
+        let optics = Optics {
+            width: 480,
+            focal_px: 340.0,
+            sign_size: 0.3,
+        };
+        let nav = NavConfig::default();
+        let make = || Navigator::new(&nav, 2.0, optics);
+        assert_eq!(make().action_of(0), Sign::from_id(0).and_then(Sign::action));
+        let mut wait = make().with_actions(vec![Some(NavAction::Wait)]);
+        assert_eq!(first_command(&mut wait), Some(NavCommand::Hold));
+        let mut nothing = make().with_actions(vec![None]);
+        assert_eq!(nothing.action_of(0), None);
+        assert_eq!(first_command(&mut nothing), None);
+        assert_eq!(nothing.action_of(7), None, "past the table: nothing");
     }
 }
