@@ -15,6 +15,7 @@
 
 pub mod config;
 pub mod link;
+pub mod replay;
 pub mod source;
 
 use config::PilotConfig;
@@ -37,8 +38,12 @@ use std::time::Instant;
 )]
 pub struct Args {
     /// The bundle folder (`policy.frpb` and `onnx/<variant>/`, from `frugal bundle write`).
-    #[arg(long)]
-    pub bundle: PathBuf,
+    #[arg(long, required_unless_present = "detections")]
+    pub bundle: Option<PathBuf>,
+    /// Replay: per-frame detections from this file (JSON lines, as `--json` writes
+    /// them) instead of the bundle's detectors; see [`replay`].
+    #[arg(long, conflicts_with = "bundle")]
+    pub detections: Option<PathBuf>,
     /// Video file, image folder, V4L2 device (`/dev/video0`), stream URL (`udp://…`,
     /// `rtp://…`) or SDP file.
     #[arg(long)]
@@ -84,6 +89,9 @@ pub enum PilotError {
         /// What is wrong.
         message: String,
     },
+    /// The detections file.
+    #[error(transparent)]
+    Replay(#[from] replay::ReplayError),
     /// The flight log.
     #[error(transparent)]
     Log(#[from] frugal_nav::flight_log::LogError),
@@ -183,6 +191,65 @@ fn percentile(sorted: &[f64], q: f64) -> f64 {
     sorted[i.min(sorted.len() - 1)]
 }
 
+/// Where detections come from: the bundle's detectors, or a replayed file.
+enum Perception {
+    Bundle(Box<BundlePerception>),
+    Replay(replay::Replay),
+}
+
+impl Perception {
+    /// Perceive processed frame `index`, number `frame` of the input.
+    fn perceive(
+        &mut self,
+        image: FrameRef<'_>,
+        index: u64,
+        frame: u64,
+    ) -> Result<frugal_nav::Percept, frugal_nav::PerceptionError> {
+        match self {
+            Perception::Bundle(p) => p.perceive(image, index),
+            Perception::Replay(r) => Ok(r.percept(frame)),
+        }
+    }
+
+    /// The reference variant's reading of frame number `frame`.
+    fn confirm(
+        &mut self,
+        image: FrameRef<'_>,
+        frame: u64,
+    ) -> Result<frugal_nav::Percept, frugal_nav::PerceptionError> {
+        match self {
+            Perception::Bundle(p) => p.confirm(image),
+            Perception::Replay(r) => Ok(frugal_nav::Percept {
+                detections: r.confirm(frame),
+                ..frugal_nav::Percept::default()
+            }),
+        }
+    }
+
+    /// The variants run on the last frame.
+    fn last_variants(&self, tracked: bool) -> Vec<&'static str> {
+        match self {
+            Perception::Bundle(p) => p.last_variants(),
+            Perception::Replay(_) if tracked => Vec::new(),
+            Perception::Replay(_) => vec![REPLAY],
+        }
+    }
+
+    /// The name of the variant that confirms.
+    fn reference(&self) -> Option<&'static str> {
+        match self {
+            Perception::Bundle(p) => {
+                let b = p.bundle();
+                b.variant(b.policy().reference()).map(|v| v.name)
+            }
+            Perception::Replay(_) => Some(REPLAY),
+        }
+    }
+}
+
+/// The variant name JSON lines give replayed detections.
+const REPLAY: &str = "replay";
+
 /// Dead reckoning of the distance flown and the heading from the commands.
 struct Reckoner {
     odo: f64,
@@ -209,11 +276,20 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
     let log = args.odometry.as_deref().map(FlightLog::read).transpose()?;
     // the bundle is checked (every graph's hash) and every variant opened before the
     // first frame
-    let mut perception =
-        BundlePerception::open(&args.bundle, args.threads).map_err(|e| PilotError::Bundle {
-            path: args.bundle.clone(),
-            message: e.to_string(),
-        })?;
+    let mut perception = match (&args.bundle, &args.detections) {
+        (_, Some(path)) => Perception::Replay(replay::Replay::read(path)?),
+        (Some(dir), None) => Perception::Bundle(Box::new(
+            BundlePerception::open(dir, args.threads).map_err(|e| PilotError::Bundle {
+                path: dir.clone(),
+                message: e.to_string(),
+            })?,
+        )),
+        (None, None) => {
+            return Err(PilotError::Usage(
+                "--bundle or --detections is required".into(),
+            ));
+        }
+    };
     let mut link = args
         .mavlink
         .as_deref()
@@ -240,10 +316,7 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
         },
     );
 
-    let reference = {
-        let b = perception.bundle();
-        b.variant(b.policy().reference()).map(|v| v.name)
-    };
+    let reference = perception.reference();
     let mailbox = Arc::new(Mailbox::default());
     let stats = Arc::new(InputStats::default());
     let halt = Arc::new(AtomicBool::new(false));
@@ -286,7 +359,7 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
             height: h,
             rgb: frame.image.as_raw(),
         };
-        let percept = match perception.perceive(image, index) {
+        let percept = match perception.perceive(image, index, frame.index) {
             Ok(p) => p,
             Err(e) => {
                 break Err(PilotError::Perception {
@@ -295,7 +368,7 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
                 });
             }
         };
-        let variants = perception.last_variants();
+        let variants = perception.last_variants(percept.tracked);
         let mut compute_ms = percept.compute_ms;
         // what the navigator is told besides the detections
         let (t, odometer, yaw, pedestrian_close) = match &log {
@@ -345,7 +418,7 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
         let step = navigator.step(
             &nav_input,
             || {
-                let check = perception.confirm(image)?;
+                let check = perception.confirm(image, frame.index)?;
                 compute_ms += check.compute_ms;
                 confirmed.extend(reference);
                 Ok::<_, frugal_nav::PerceptionError>(Some(check.detections))
