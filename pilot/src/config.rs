@@ -85,6 +85,32 @@ pub struct SignConfig {
     /// Spacing of the junctions, metres: the navigator's distances left unset default
     /// to fractions of it.
     pub cell_m: f64,
+    /// What the drone does on each of the detector's classes, by class id:
+    /// `turn_left`, `turn_right`, `stop`, `wait` or `none` (as the dataset's manifest
+    /// lists them). Unset: the ten synthetic signs' meanings.
+    pub actions: Option<Vec<String>>,
+}
+
+impl SignConfig {
+    /// The action table the navigator flies by (`None`: the ten signs').
+    pub fn action_table(&self) -> Result<Option<Vec<Option<frugal_data::NavAction>>>, String> {
+        let Some(names) = &self.actions else {
+            return Ok(None);
+        };
+        names
+            .iter()
+            .enumerate()
+            .map(|(class, name)| match name.trim() {
+                "none" | "" => Ok(None),
+                n => frugal_data::NavAction::from_name(n).map(Some).ok_or_else(|| {
+                    format!(
+                        "signs: actions[{class}] is {n:?} (turn_left, turn_right, stop, wait or none)"
+                    )
+                }),
+            })
+            .collect::<Result<Vec<_>, _>>()
+            .map(Some)
+    }
 }
 
 impl Default for SignConfig {
@@ -93,6 +119,7 @@ impl Default for SignConfig {
         Self {
             size_m: 0.45,
             cell_m: 3.0,
+            actions: None,
         }
     }
 }
@@ -195,6 +222,7 @@ impl PilotConfig {
         if !(s.size_m > 0.0 && s.size_m.is_finite() && s.cell_m > 0.0 && s.cell_m.is_finite()) {
             return Err("signs: size_m and cell_m must be positive".into());
         }
+        s.action_table()?;
         let n = &self.nav;
         if !(n.v_max > 0.0 && n.react_distance > 0.0 && n.yaw_rate_deg > 0.0) {
             return Err("nav: v_max, react_distance and yaw_rate_deg must be positive".into());

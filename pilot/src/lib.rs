@@ -172,9 +172,9 @@ impl Summary {
     }
 }
 
-/// The sign's short name for telemetry.
-fn sign_name(class: u16) -> String {
-    match frugal_data::Sign::from_id(class).and_then(|s| s.action()) {
+/// The sign's short name for telemetry: its action, else its class id.
+fn sign_name(navigator: &Navigator, class: u16) -> String {
+    match navigator.action_of(class) {
         Some(frugal_data::NavAction::TurnLeft) => "left".into(),
         Some(frugal_data::NavAction::TurnRight) => "right".into(),
         Some(frugal_data::NavAction::Stop) => "stop".into(),
@@ -315,6 +315,10 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
             sign_size: config.signs.size_m,
         },
     );
+    // (checked when the config was read)
+    if let Ok(Some(table)) = config.signs.action_table() {
+        navigator = navigator.with_actions(table);
+    }
 
     let reference = perception.reference();
     let mailbox = Arc::new(Mailbox::default());
@@ -445,7 +449,9 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
                 let (cx, _) = d.bbox.center();
                 let offset = (cx - w as f32 / 2.0) / w as f32;
                 let dist = navigator.distance_of(d) as f32;
-                if let Err(e) = link.detection(usec, &sign_name(d.class), offset, dist, d.score) {
+                if let Err(e) =
+                    link.detection(usec, &sign_name(&navigator, d.class), offset, dist, d.score)
+                {
                     link_error = Some(e);
                 }
             }
@@ -472,7 +478,7 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
                 .map(|d| {
                     json!({
                         "class": d.class,
-                        "sign": sign_name(d.class),
+                        "sign": sign_name(&navigator, d.class),
                         "score": d.score,
                         "box": [d.bbox.x1, d.bbox.y1, d.bbox.x2, d.bbox.y2],
                     })
