@@ -10,7 +10,7 @@ use tch::{Kind, Tensor};
 
 /// The scenario of a frame, `"<clutter>-clutter/<light>-light"` (`"unknown"` when its
 /// video is not in the manifest).
-pub(crate) fn scenario(ds: &Dataset, f: &FrameRecord) -> String {
+pub fn scenario(ds: &Dataset, f: &FrameRecord) -> String {
     match ds.video(f.video) {
         Some(v) => crate::config::scenario_name(v.clutter, v.light),
         None => "unknown".into(),

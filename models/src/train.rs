@@ -18,7 +18,7 @@
 //!
 //! Over 600 lines only with its unit tests (the last 70).
 use crate::config::{Config, TrainConfig};
-use crate::frames::{input_frame, scenario};
+use crate::frames::input_frame;
 use crate::loss::image_losses;
 use crate::metrics::{Interpolation, Truth, evaluate};
 use crate::optim::{Optimizer, learning_rate};
@@ -34,7 +34,7 @@ use std::path::{Path, PathBuf};
 use tch::{Device, Kind, Tensor};
 
 pub use crate::curves::EpochRecord;
-pub use crate::frames::{detect_frames, frame_truth, spread};
+pub use crate::frames::{detect_frames, frame_truth, scenario, spread};
 
 /// What one `frugal train` invocation is asked to do.
 #[derive(Clone, Debug)]

@@ -45,12 +45,12 @@ pub type PerceptionError = Box<dyn std::error::Error + Send + Sync>;
 #[non_exhaustive]
 pub enum BundleError {
     /// A file cannot be read.
-    #[error("{path}: {message}")]
+    #[error("{path}: {source}")]
     Io {
         /// The file.
         path: PathBuf,
         /// Why.
-        message: String,
+        source: std::io::Error,
     },
     /// The bundle file does not parse.
     #[error("{path}: not a valid bundle: {message}")]
@@ -93,10 +93,17 @@ pub fn hex(bytes: &[u8]) -> String {
 /// variant's ONNX graph, and the `file:` metadata entries) exists and hashes to what
 /// it records. Returns the files checked.
 pub fn verify_files(dir: &Path) -> Result<Vec<PathBuf>, BundleError> {
-    let file = dir.join(BUNDLE_FILE);
+    verify_bundle_file(&dir.join(BUNDLE_FILE))
+}
+
+/// [`verify_files`] for a bundle file of any name: the files it names are relative to
+/// its folder.
+pub fn verify_bundle_file(file: &Path) -> Result<Vec<PathBuf>, BundleError> {
+    let file = file.to_owned();
+    let dir = file.parent().unwrap_or(Path::new("."));
     let io = |path: &Path, e: std::io::Error| BundleError::Io {
         path: path.to_owned(),
-        message: e.to_string(),
+        source: e,
     };
     let bytes = std::fs::read(&file).map_err(|e| io(&file, e))?;
     let bundle = Bundle::parse(&bytes).map_err(|e| BundleError::Parse {

@@ -114,6 +114,11 @@ pub struct NavStep {
 /// The sign under a box, as a ground truth knows it: its class id and depth, metres.
 pub type Truth<'a> = &'a dyn Fn(&BBox) -> Option<(u16, f64)>;
 
+/// What the drone does on `class`, by the table `actions` (past its end: nothing).
+fn meaning(actions: &[Option<NavAction>], class: u16) -> Option<NavAction> {
+    actions.get(usize::from(class)).copied().flatten()
+}
+
 /// The sign-to-action navigator (see the [crate documentation](crate)).
 #[derive(Clone, Debug)]
 pub struct Navigator {
@@ -169,7 +174,7 @@ impl Navigator {
 
     /// The meaning of class `class`.
     pub fn action_of(&self, class: u16) -> Option<NavAction> {
-        self.actions.get(usize::from(class)).copied().flatten()
+        meaning(&self.actions, class)
     }
 
     /// The current mode.
@@ -241,10 +246,10 @@ impl Navigator {
             Mode::Cruise | Mode::HoldForPedestrian => {
                 self.mode = Mode::Cruise;
                 let (turn_armed_at, wait_zone_until) = (self.turn_armed_at, self.wait_zone_until);
-                let actions = self.actions.clone();
+                let actions = &self.actions;
                 // what a detection would make the drone do, and how far away the sign is
                 let reading = |d: &Detection| {
-                    let action = actions.get(usize::from(d.class)).copied().flatten()?;
+                    let action = meaning(actions, d.class)?;
                     let dist =
                         optics.focal_px * optics.sign_size / f64::from(d.bbox.height()).max(1e-3);
                     let (cx, _) = d.bbox.center();
@@ -350,9 +355,7 @@ impl Navigator {
                                 sighting: s.action,
                                 read: agrees.map(|((action, _), _)| action),
                                 read_m: agrees.map(|((_, dist), _)| dist),
-                                truth: seen.and_then(|(class, _)| {
-                                    actions.get(usize::from(class)).copied().flatten()
-                                }),
+                                truth: seen.and_then(|(class, _)| meaning(actions, class)),
                                 true_m: seen.map(|(_, depth)| depth),
                             });
                             if let Some(((action, dist), _)) = agrees {

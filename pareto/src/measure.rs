@@ -16,8 +16,9 @@ use crate::stats::{Latency, cluster_resamples, std_dev};
 use crate::variants::{VariantDir, write_variants_file};
 use crate::{ParetoError, measure};
 use frugal_data::{Dataset, FrameRecord, Split};
-use frugal_models::metrics::{ImageResult, Interpolation, Truth, evaluate};
+use frugal_models::metrics::{ImageResult, Interpolation, evaluate};
 use frugal_models::onnx::OrtDetector;
+use frugal_models::train::{frame_truth, scenario, spread};
 use frugal_runtime::FrameRef;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -171,13 +172,6 @@ fn bootstrap_se(
     values.map(|v| std_dev(&v))
 }
 
-fn scenario(ds: &Dataset, f: &FrameRecord) -> String {
-    ds.video(f.video).map_or_else(
-        || "unknown".into(),
-        |v| format!("{}-clutter/{}-light", v.clutter.name(), v.light.name()),
-    )
-}
-
 fn histogram(scores: &[Option<f32>]) -> ConfidenceHistogram {
     let mut h = ConfidenceHistogram {
         frames: scores.len(),
@@ -258,12 +252,8 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
             opts.data.display()
         )));
     }
-    let n = if opts.frames == 0 || opts.frames >= all.len() {
-        all.len()
-    } else {
-        opts.frames
-    };
-    let frames: Vec<&FrameRecord> = (0..n).map(|i| all[i * all.len() / n]).collect();
+    let frames = spread(all, opts.frames);
+    let n = frames.len();
     let mut dets = Vec::new();
     for v in &variants {
         dets.push(
@@ -307,14 +297,7 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
                 .push(found.first().map(|d| d.score));
             results[i].push(ImageResult {
                 detections: found,
-                truth: f
-                    .objects
-                    .iter()
-                    .map(|o| Truth {
-                        class: o.class,
-                        bbox: o.bbox,
-                    })
-                    .collect(),
+                truth: frame_truth(f),
                 ignore: f.ignore.clone(),
             });
         }

@@ -26,10 +26,9 @@ use sha2::{Digest, Sha256};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-/// The bundle's file name inside a bundle folder.
-pub const BUNDLE_FILE: &str = "policy.frpb";
-/// Metadata key prefix of extra files.
-pub const FILE_KEY: &str = "file:";
+/// The bundle's file name inside a bundle folder, and the metadata key prefix of extra
+/// files: the drone side's, which reads and checks what this module writes.
+pub use frugal_nav::bundle::{BUNDLE_FILE, FILE_KEY};
 /// The graph that takes the variant's file slot when present.
 pub const PRIMARY_GRAPH: &str = "backbone_rpn.onnx";
 
@@ -274,45 +273,33 @@ pub fn read_bundle(path: &Path) -> Result<Vec<u8>> {
 }
 
 /// Check a bundle: the runtime parses it and every referenced file exists and hashes
-/// to what the bundle says. Returns the files checked.
+/// to what the bundle says ([`frugal_nav::bundle::verify_bundle_file`], the check the
+/// drone makes at start). Returns the files checked.
 pub fn verify(path: &Path) -> Result<Vec<PathBuf>> {
+    use frugal_nav::bundle::BundleError;
     let file = bundle_path(path);
-    let bytes = read_bundle(&file)?;
-    let bundle = Bundle::parse(&bytes).map_err(|e| PolicyError::Bundle {
-        path: file.clone(),
-        message: e.to_string(),
-    })?;
-    let base = file.parent().unwrap_or(Path::new("."));
-    let mut refs: Vec<(String, String)> = bundle
-        .variants()
-        .filter(|(_, v)| !v.onnx_file.is_empty())
-        .map(|(_, v)| (v.onnx_file.to_owned(), hex(&v.sha256)))
-        .collect();
-    refs.extend(bundle.metadata().filter_map(|(k, v)| {
-        k.strip_prefix(FILE_KEY)
-            .map(|f| (f.to_owned(), v.to_owned()))
-    }));
-    let mut checked = Vec::new();
-    for (rel, expected) in refs {
-        let p = base.join(&rel);
-        if !p.is_file() {
-            return Err(PolicyError::invalid(
-                &p,
-                "file",
-                format!("referenced by {} but missing", file.display()),
-            ));
-        }
-        let actual = hex(&sha256_file(&p)?);
-        if actual != expected {
-            return Err(PolicyError::Hash {
-                path: p,
-                expected,
-                actual,
-            });
-        }
-        checked.push(p);
-    }
-    Ok(checked)
+    frugal_nav::bundle::verify_bundle_file(&file).map_err(|e| match e {
+        BundleError::Io { path, source } => PolicyError::io(path, source),
+        BundleError::Parse { path, message } => PolicyError::Bundle { path, message },
+        BundleError::Missing { path, bundle } => PolicyError::invalid(
+            &path,
+            "file",
+            format!("referenced by {} but missing", bundle.display()),
+        ),
+        BundleError::Hash {
+            path,
+            expected,
+            actual,
+        } => PolicyError::Hash {
+            path,
+            expected,
+            actual,
+        },
+        other => PolicyError::Bundle {
+            path: file.clone(),
+            message: other.to_string(),
+        },
+    })
 }
 
 /// A readable description of a bundle.

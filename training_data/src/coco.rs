@@ -141,6 +141,20 @@ pub fn check_box(
     }
 }
 
+/// The image an annotation names: `items[at]`, where `at` is the image's position
+/// (`None`: no image has that id, an error naming the annotation's `record`).
+pub(crate) fn annotated_image<'a, T>(
+    items: &'a mut [T],
+    at: Option<usize>,
+    path: &Path,
+    record: &str,
+    image_id: u64,
+) -> Result<&'a mut T, DataError> {
+    at.and_then(|i| items.get_mut(i)).ok_or_else(|| {
+        DataError::invalid(path, record, format!("image id {image_id} does not exist"))
+    })
+}
+
 impl CocoFile {
     /// Parse a COCO file.
     pub fn read(path: &Path) -> Result<CocoFile, DataError> {
@@ -200,16 +214,8 @@ impl CocoFile {
         }
         for ann in self.annotations {
             let record = format!("annotation id {}", ann.id);
-            let frame = index_of
-                .get(&ann.image_id)
-                .and_then(|&i| frames.get_mut(i))
-                .ok_or_else(|| {
-                    DataError::invalid(
-                        path,
-                        &record,
-                        format!("image id {} does not exist", ann.image_id),
-                    )
-                })?;
+            let at = index_of.get(&ann.image_id).copied();
+            let frame = annotated_image(&mut frames, at, path, &record, ann.image_id)?;
             let class = ann
                 .category_id
                 .checked_sub(1)

@@ -264,16 +264,8 @@ fn read_coco(
     }
     for ann in coco.annotations {
         let record = format!("annotation id {}", ann.id);
-        let slot = index_of
-            .get(&ann.image_id)
-            .and_then(|&i| out.get_mut(i))
-            .ok_or_else(|| {
-                DataError::invalid(
-                    path,
-                    &record,
-                    format!("image id {} does not exist", ann.image_id),
-                )
-            })?;
+        let at = index_of.get(&ann.image_id).copied();
+        let slot = crate::coco::annotated_image(&mut out, at, path, &record, ann.image_id)?;
         let (_, class) = cats
             .get(&ann.category_id)
             .ok_or_else(|| DataError::UnknownClass {

@@ -72,6 +72,26 @@ pub(crate) fn run(program: &str, command: &mut Command, path: &Path) -> Result<O
         .map_err(|e| spawn_error(program, path, e))
 }
 
+/// Run `ffprobe` (the program `program`) with `args` on `path`'s URL; its standard
+/// output, or an error that starts with `failure` and carries ffprobe's message.
+pub(crate) fn ffprobe(
+    program: &str,
+    path: &Path,
+    args: &[&str],
+    failure: &str,
+) -> Result<Vec<u8>, DataError> {
+    let url = file_url(path);
+    let out = run(program, Command::new(program).args(args).arg(&url), path)?;
+    if !out.status.success() {
+        return Err(DataError::invalid(
+            path,
+            "video",
+            format!("{failure}: {}", one_line(&out.stderr, &url)),
+        ));
+    }
+    Ok(out.stdout)
+}
+
 /// The error for a program that could not be started.
 pub(crate) fn spawn_error(program: &str, path: &Path, e: std::io::Error) -> DataError {
     if e.kind() == std::io::ErrorKind::NotFound {
@@ -139,32 +159,20 @@ pub fn probe(path: &Path) -> Result<MediaInfo, DataError> {
 /// [`probe`] with the given programs, keeping what the reader needs.
 pub(crate) fn probe_with(tools: &Tools, path: &Path) -> Result<Probed, DataError> {
     check_file(path)?;
-    let url = file_url(path);
-    let out = run(
+    let stdout = ffprobe(
         tools.ffprobe,
-        Command::new(tools.ffprobe)
-            .args([
-                "-v",
-                "error",
-                "-of",
-                "json",
-                "-show_format",
-                "-show_streams",
-            ])
-            .arg(&url),
         path,
+        &[
+            "-v",
+            "error",
+            "-of",
+            "json",
+            "-show_format",
+            "-show_streams",
+        ],
+        "not a video ffprobe can read",
     )?;
-    if !out.status.success() {
-        return Err(DataError::invalid(
-            path,
-            "video",
-            format!(
-                "not a video ffprobe can read: {}",
-                one_line(&out.stderr, &url)
-            ),
-        ));
-    }
-    let json: Value = serde_json::from_slice(&out.stdout).map_err(|e| {
+    let json: Value = serde_json::from_slice(&stdout).map_err(|e| {
         DataError::invalid(path, "ffprobe", format!("unexpected ffprobe output: {e}"))
     })?;
     parse(path, &json)

@@ -55,7 +55,7 @@
 //! Logging at info level for `showinfo` means ffmpeg also prints its banner and
 //! stream mapping; `-loglevel level+info` tags each line with its level, and only
 //! `[error]`, `[fatal]` and `[panic]` lines count as problems.
-use super::probe::{Probed, Ratio, file_url, one_line, probe_with, run, spawn_error};
+use super::probe::{Probed, Ratio, file_url, probe_with, spawn_error};
 use super::{DecodedFrame, MediaInfo, Sampling, TOOLS, Tools};
 use crate::DataError;
 use image::RgbImage;
@@ -486,31 +486,27 @@ fn packets_before(
     pts: i64,
     seconds: f64,
 ) -> Result<u64, DataError> {
-    let url = file_url(path);
     // Packets are in decode order: read 2 s more so that none shown before `pts` is
     // missed.
-    let out = run(
+    let (stream, interval) = (stream_index.to_string(), format!("%{:.6}", seconds + 2.0));
+    let stdout = super::probe::ffprobe(
         ffprobe,
-        Command::new(ffprobe)
-            .args(["-v", "error", "-select_streams"])
-            .arg(stream_index.to_string())
-            .arg("-read_intervals")
-            .arg(format!("%{:.6}", seconds + 2.0))
-            .args(["-show_entries", "packet=pts,flags", "-of", "csv=p=0"])
-            .arg(&url),
         path,
+        &[
+            "-v",
+            "error",
+            "-select_streams",
+            &stream,
+            "-read_intervals",
+            &interval,
+            "-show_entries",
+            "packet=pts,flags",
+            "-of",
+            "csv=p=0",
+        ],
+        "ffprobe could not list the packets",
     )?;
-    if !out.status.success() {
-        return Err(DataError::invalid(
-            path,
-            "video",
-            format!(
-                "ffprobe could not list the packets: {}",
-                one_line(&out.stderr, &url)
-            ),
-        ));
-    }
-    let count = String::from_utf8_lossy(&out.stdout)
+    let count = String::from_utf8_lossy(&stdout)
         .lines()
         .filter(|line| {
             let (packet_pts, flags) = line.split_once(',').unwrap_or((line, ""));
