@@ -213,17 +213,39 @@ impl FasterRcnn {
 
     /// Network part 1: normalised images `[B, 3, H, W]` → features, objectness, deltas.
     pub fn backbone_rpn(&self, images: &Tensor) -> RpnOutput {
-        let mut x = images.shallow_clone();
-        for b in &self.blocks {
-            for c in b {
-                x = c.forward(&x).relu();
+        self.backbone_rpn_as(images, Kind::Float)
+    }
+
+    /// [`FasterRcnn::backbone_rpn`] with its convolutions computed in `kind`
+    /// (`Kind::BFloat16` for mixed-precision training): the input and each layer's
+    /// weights are cast to `kind` on the way in, so the weights stay `f32` and so do
+    /// their gradients; the outputs are `f32`. `Kind::Float` is the plain `f32` network.
+    pub fn backbone_rpn_as(&self, images: &Tensor, kind: Kind) -> RpnOutput {
+        let conv = |c: &nn::Conv2D, x: &Tensor, stride: i64| {
+            if kind == Kind::Float {
+                return c.forward(x);
+            }
+            let pad = c.ws.size()[2] / 2;
+            x.conv2d(
+                &c.ws.to_kind(kind),
+                c.bs.as_ref().map(|b| b.to_kind(kind)).as_ref(),
+                [stride, stride],
+                [pad, pad],
+                [1, 1],
+                1,
+            )
+        };
+        let mut x = images.to_kind(kind);
+        for (b, bc) in self.blocks.iter().zip(&self.config.backbone) {
+            for (j, c) in b.iter().enumerate() {
+                x = conv(c, &x, if j == 0 { bc.stride } else { 1 }).relu();
             }
         }
-        let h = self.rpn_conv.forward(&x).relu();
+        let h = conv(&self.rpn_conv, &x, 1).relu();
         RpnOutput {
-            objectness: self.rpn_obj.forward(&h),
-            deltas: self.rpn_box.forward(&h),
-            features: x,
+            objectness: conv(&self.rpn_obj, &h, 1).to_kind(Kind::Float),
+            deltas: conv(&self.rpn_box, &h, 1).to_kind(Kind::Float),
+            features: x.to_kind(Kind::Float),
         }
     }
 

@@ -19,7 +19,7 @@
 //! Over 600 lines only with its unit tests (the last 70).
 use crate::config::{Config, TrainConfig};
 use crate::frames::input_frame;
-use crate::loss::image_losses;
+use crate::loss::batch_losses;
 use crate::metrics::{Interpolation, Truth, evaluate};
 use crate::optim::{Optimizer, learning_rate};
 use crate::{FasterRcnn, ModelError, curves};
@@ -250,7 +250,7 @@ pub fn augment_geometry(
     (canvas, boxes)
 }
 
-/// `[1, 3, H, W]` in `[0, 1]` → normalised with the model's mean / std.
+/// `[B, 3, H, W]` in `[0, 1]` → normalised with the model's mean / std.
 fn normalise(model: &FasterRcnn, x: &Tensor) -> Tensor {
     let c = model.config();
     let mean = Tensor::from_slice(&c.pixel_mean)
@@ -465,28 +465,31 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
             let mut rng = ChaCha8Rng::seed_from_u64(s);
             tch::manual_seed(s as i64);
             opt.zero_grad();
-            let mut parts = [0.0f64; 5];
-            let mut total = Tensor::zeros([], (Kind::Float, opts.device));
+            // the batch's frames, augmented, stacked into one `[B, 3, H, W]` tensor
+            let tic = std::time::Instant::now();
+            let mut images = Vec::with_capacity(batch.len());
+            let mut truths = Vec::with_capacity(batch.len());
             for &i in batch {
-                let tic = std::time::Instant::now();
-                let f = train_frames[i];
-                let (img, truth) = input_frame(&ds, f, input)?;
+                let (img, truth) = input_frame(&ds, train_frames[i], input)?;
                 let (x, truth) =
                     augment_geometry(&img.to_device(opts.device), &truth, &tc, &mut rng);
-                let x = normalise(&model, &augment(&x, &tc, &mut rng));
-                spent[0] += tic.elapsed().as_secs_f64();
-                let tic = std::time::Instant::now();
-                let l = image_losses(&model, &x, &truth, &tc, &mut rng);
-                for (p, t) in
-                    parts
-                        .iter_mut()
-                        .zip([&l.rpn_objectness, &l.rpn_box, &l.roi_class, &l.roi_box])
-                {
-                    *p += t.double_value(&[]) / batch.len() as f64;
-                }
-                total += l.total() / batch.len() as f64;
-                spent[1] += tic.elapsed().as_secs_f64();
+                images.push(augment(&x, &tc, &mut rng));
+                truths.push(truth);
             }
+            let x = normalise(&model, &Tensor::cat(&images, 0));
+            spent[0] += tic.elapsed().as_secs_f64();
+            let tic = std::time::Instant::now();
+            let l = batch_losses(&model, &x, &truths, &tc, &mut rng);
+            let mut parts = [0.0f64; 5];
+            for (p, t) in
+                parts
+                    .iter_mut()
+                    .zip([&l.rpn_objectness, &l.rpn_box, &l.roi_class, &l.roi_box])
+            {
+                *p = t.double_value(&[]);
+            }
+            let total = l.total();
+            spent[1] += tic.elapsed().as_secs_f64();
             parts[4] = parts[..4].iter().sum();
             let tic = std::time::Instant::now();
             total.backward();

@@ -4,7 +4,7 @@
 use super::prune::{Masks, apply_masks};
 use crate::config::TrainConfig;
 use crate::frames::{image_tensor, resize, scaled_truth, spread};
-use crate::loss::image_losses;
+use crate::loss::batch_losses;
 use crate::optim::{Optimizer, learning_rate};
 use crate::train::augment;
 use crate::{FasterRcnn, ModelError};
@@ -13,7 +13,7 @@ use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
-use tch::{Device, Kind, Tensor};
+use tch::Tensor;
 
 /// The fine-tuning budget.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -100,7 +100,8 @@ pub fn finetune(
     for step in 0..cfg.steps {
         tch::manual_seed((cfg.seed ^ step as u64) as i64);
         opt.zero_grad();
-        let mut total = Tensor::zeros([], (Kind::Float, Device::Cpu));
+        let mut images = Vec::with_capacity(tc.batch_size);
+        let mut truths = Vec::with_capacity(tc.batch_size);
         for _ in 0..tc.batch_size {
             if order.is_empty() {
                 order = (0..frames.len()).collect();
@@ -111,11 +112,11 @@ pub fn finetune(
                 .load_rgb(f)
                 .map_err(|e| ModelError::Data(e.to_string()))?;
             let img = augment(&image_tensor(&rgb), &tc, &mut rng);
-            let x = normalise(model, &resize(&img, input.0, input.1));
-            let truth = scaled_truth(f, input);
-            let l = image_losses(model, &x, &truth, &tc, &mut rng);
-            total += l.total() / tc.batch_size as f64;
+            images.push(normalise(model, &resize(&img, input.0, input.1)));
+            truths.push(scaled_truth(f, input));
         }
+        // one forward and backward pass over the batch (all frames at `input`)
+        let total = batch_losses(model, &Tensor::cat(&images, 0), &truths, &tc, &mut rng).total();
         total.backward();
         opt.step(learning_rate(&tc, step, cfg.steps));
         if let Some(m) = masks {
