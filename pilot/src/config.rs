@@ -22,6 +22,7 @@
 //! target_system = 1    # the autopilot's
 //! target_component = 1
 //! heartbeat_hz = 1.0
+//! turn_tolerance_deg = 3.0   # --mavlink-odometry: a turn is over this close to its target
 //!
 //! [input]
 //! retries = 5          # reconnections in a row before giving up
@@ -138,6 +139,9 @@ pub struct MavlinkConfig {
     pub target_component: u8,
     /// HEARTBEATs per second.
     pub heartbeat_hz: f64,
+    /// With `--mavlink-odometry`: a turn is over when the autopilot's heading is this
+    /// close to the turn's target, degrees.
+    pub turn_tolerance_deg: f64,
 }
 
 impl Default for MavlinkConfig {
@@ -149,6 +153,7 @@ impl Default for MavlinkConfig {
             target_system: 1,
             target_component: 1,
             heartbeat_hz: 1.0,
+            turn_tolerance_deg: 3.0,
         }
     }
 }
@@ -229,6 +234,12 @@ impl PilotConfig {
         }
         if !(self.mavlink.heartbeat_hz > 0.0 && self.mavlink.heartbeat_hz.is_finite()) {
             return Err("mavlink: heartbeat_hz must be positive".into());
+        }
+        let tol = self.mavlink.turn_tolerance_deg;
+        if !(tol > 0.0 && tol < 45.0) {
+            return Err(format!(
+                "mavlink: turn_tolerance_deg must be between 0 and 45, not {tol}"
+            ));
         }
         if self.input.stall_timeout_ms == 0 {
             return Err("input: stall_timeout_ms must be positive".into());

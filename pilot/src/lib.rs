@@ -6,15 +6,18 @@
 //! navigator the maze simulator flies ([`frugal_nav::Navigator`]), and writes one JSON
 //! line per processed frame and MAVLink 2 to the autopilot ([`link`]).
 //!
-//! The distance flown, which the navigator places signs by, comes from a flight log
-//! (`--odometry FILE`, as `frugal fly --record` writes next to its footage) or from dead
-//! reckoning of the commanded speed (the navigator's cruise speed) and yaw rate.
+//! The distance flown, which the navigator places signs by, comes from the autopilot
+//! over MAVLink (`--mavlink-odometry`: `LOCAL_POSITION_NED` and `ATTITUDE`), from a
+//! flight log (`--odometry FILE`, as `frugal fly --record` writes next to its footage),
+//! or from dead reckoning of the commanded speed (the navigator's cruise speed) and
+//! yaw rate.
 //! A pedestrian detector is not part of the bundle: without a flight log the
 //! navigator is told no pedestrian is close.
 #![deny(missing_docs)]
 
 pub mod config;
 pub mod link;
+pub mod odometry;
 pub mod replay;
 pub mod source;
 
@@ -63,6 +66,11 @@ pub struct Args {
     /// pedestrian proximity per frame, instead of dead reckoning.
     #[arg(long)]
     pub odometry: Option<PathBuf>,
+    /// Take the distance flown and the heading from the autopilot's
+    /// `LOCAL_POSITION_NED` and `ATTITUDE` on the `--mavlink` link (dead reckoning until
+    /// both have arrived); see [`odometry`].
+    #[arg(long, requires = "mavlink", conflicts_with = "odometry")]
+    pub mavlink_odometry: bool,
     /// Where the JSON lines go: `-` for stdout, a file, or `none`.
     #[arg(long, default_value = "-")]
     pub json: String,
@@ -136,6 +144,8 @@ pub struct Summary {
     pub commands: Vec<(u64, NavCommand)>,
     /// MAVLink heartbeats sent.
     pub heartbeats: u64,
+    /// MAVLink messages read from the autopilot (`--mavlink-odometry`).
+    pub mavlink_received: u64,
     /// Processed frames per second of wall-clock time.
     pub fps: f64,
     /// Median time from a frame's arrival to its decision (and command), ms.
@@ -348,6 +358,9 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
     };
     let mut target_yaw = 0.0;
     let yaw_rate = config.nav.yaw_rate_deg.to_radians();
+    let mut autopilot = odometry::MavOdometry::default();
+    let mut waiting_reported = false;
+    let turn_tolerance = config.mavlink.turn_tolerance_deg.to_radians();
     let result = loop {
         if stop.load(Ordering::Relaxed) {
             summary.interrupted = true;
@@ -375,9 +388,31 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
         let variants = perception.last_variants(percept.tracked);
         let mut compute_ms = percept.compute_ms;
         // what the navigator is told besides the detections
-        let (t, odometer, yaw, pedestrian_close) = match &log {
-            Some(log) => match log.rows.get(frame.index as usize) {
-                Some(r) => (r.decision_s, r.odometer_m, r.yaw_rad, r.pedestrian_close),
+        let mut from_autopilot = None;
+        if args.mavlink_odometry
+            && let Some(link) = link.as_ref()
+        {
+            match link.poll(&mut autopilot) {
+                Ok(n) => summary.mavlink_received += n,
+                Err(e) => report(&e.to_string()),
+            }
+            from_autopilot = autopilot.pose();
+            if from_autopilot.is_none() && !waiting_reported {
+                report(
+                    "no LOCAL_POSITION_NED and ATTITUDE from the autopilot yet: dead reckoning until both arrive",
+                );
+                waiting_reported = true;
+            }
+        }
+        let (t, odometer, yaw, pedestrian_close, source) = match (&log, from_autopilot) {
+            (Some(log), _) => match log.rows.get(frame.index as usize) {
+                Some(r) => (
+                    r.decision_s,
+                    r.odometer_m,
+                    r.yaw_rad,
+                    r.pedestrian_close,
+                    "log",
+                ),
                 None => {
                     break Err(PilotError::Usage(format!(
                         "{}: no row for frame {}",
@@ -389,7 +424,10 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
                     )));
                 }
             },
-            None => {
+            (None, Some((odo, yaw))) => {
+                (started.elapsed().as_secs_f64(), odo, yaw, false, "mavlink")
+            }
+            (None, None) => {
                 let t = started.elapsed().as_secs_f64();
                 let dt = t - reckoner.last_t.unwrap_or(t);
                 if dt > 0.0 {
@@ -406,10 +444,17 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
                     }
                 }
                 reckoner.last_t = Some(t);
-                (t, reckoner.odo, reckoner.yaw, false)
+                (t, reckoner.odo, reckoner.yaw, false, "reckoned")
             }
         };
-        let turn_done = navigator.mode() == Mode::Turning && reached(target_yaw, yaw);
+        // a real heading never lands exactly on the target: the autopilot's counts
+        // within the configured tolerance
+        let turn_done = navigator.mode() == Mode::Turning
+            && if source == "mavlink" {
+                wrap(target_yaw - yaw).abs() <= turn_tolerance
+            } else {
+                reached(target_yaw, yaw)
+            };
         let nav_input = NavInput {
             t,
             odometer,
@@ -493,6 +538,9 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
                 "boxes": boxes,
                 "action": step.command.map(NavCommand::name),
                 "mode": navigator.mode(),
+                "odometry": source,
+                "odometer_m": odometer,
+                "yaw_deg": yaw.to_degrees(),
                 "events": step.events,
                 "compute_ms": compute_ms,
                 "latency_ms": latency_ms,

@@ -10,12 +10,17 @@
 //!
 //! Commands go to `target_system` / `target_component`; messages carry `system_id` /
 //! `component_id` (the configuration's `[mavlink]` table).
+//!
+//! In (`--mavlink-odometry`): `LOCAL_POSITION_NED` and `ATTITUDE` from the autopilot,
+//! read without blocking before every decision ([`Link::poll`], [`crate::odometry`]).
 use crate::config::MavlinkConfig;
+use crate::odometry::MavOdometry;
 use frugal_nav::NavCommand;
 use mavlink::dialects::common::{
     COMMAND_LONG_DATA, DEBUG_VECT_DATA, HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMessage,
     MavModeFlag, MavState, MavType,
 };
+use mavlink::error::MessageReadError;
 use mavlink::{MavConnection, MavHeader, MavlinkVersion};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
@@ -197,6 +202,45 @@ impl Link {
         self.send(&self.command_message(command))?;
         self.commands += 1;
         Ok(())
+    }
+
+    /// Read every message waiting on the link without blocking (a serial port waits up
+    /// to its 1 ms timeout), feeding positions and attitudes to `odometry`. Messages
+    /// that do not parse are skipped; returns how many messages were read.
+    pub fn poll(&self, odometry: &mut MavOdometry) -> Result<u64, LinkError> {
+        let mut read = 0;
+        loop {
+            match self.conn.try_recv() {
+                Ok((_, msg)) => {
+                    read += 1;
+                    match msg {
+                        MavMessage::LOCAL_POSITION_NED(p) => {
+                            odometry.position(f64::from(p.x), f64::from(p.y));
+                        }
+                        MavMessage::ATTITUDE(a) => odometry.attitude(f64::from(a.yaw)),
+                        _ => {}
+                    }
+                }
+                Err(MessageReadError::Io(e))
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::WouldBlock
+                            | std::io::ErrorKind::TimedOut
+                            // no ground station or autopilot listening yet (UDP)
+                            | std::io::ErrorKind::ConnectionRefused
+                    ) =>
+                {
+                    return Ok(read);
+                }
+                Err(MessageReadError::Parse(_)) => {}
+                Err(MessageReadError::Io(e)) => {
+                    return Err(LinkError {
+                        address: self.address.clone(),
+                        message: format!("reading: {e}"),
+                    });
+                }
+            }
+        }
     }
 
     /// Heartbeats sent so far.

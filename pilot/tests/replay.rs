@@ -10,7 +10,7 @@ use frugal_pilot::config::PilotConfig;
 use frugal_runtime::{BBox, Detection};
 use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::{Child, ChildStdout, Command, Stdio};
 use std::time::{Duration, Instant};
 
 const FPS: f64 = 30.0;
@@ -233,17 +233,16 @@ fn the_pilot_issues_the_navigators_commands_on_the_same_frames() {
     assert_eq!(actions(&tmp.path().join("again.jsonl")), expected);
 }
 
-#[test]
-fn a_mavlink_ground_station_receives_heartbeats_and_the_commands_in_order() {
-    let (log, frames) = flight();
-    let tmp = tempfile::tempdir().unwrap();
-    let mut args = replay_files(tmp.path(), &log, &frames);
+/// `mavlink_peer.py` started with `args` after its port (0: any free one); its stdout
+/// after the line with the port, and the port.
+fn ground_station(args: &[&str]) -> (Child, BufReader<ChildStdout>, u64) {
     let python =
         std::env::var_os("FRUGAL_PYTHON").expect("FRUGAL_PYTHON (set by cargo xtask setup)");
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/mavlink_peer.py");
     let mut peer = Command::new(python)
         .arg(&script)
-        .args(["0", "30"])
+        .arg("0")
+        .args(args)
         .stdout(Stdio::piped())
         .spawn()
         .unwrap_or_else(|e| panic!("start {}: {e}", script.display()));
@@ -252,7 +251,23 @@ fn a_mavlink_ground_station_receives_heartbeats_and_the_commands_in_order() {
     out.read_line(&mut first).unwrap();
     let port: serde_json::Value = serde_json::from_str(&first)
         .unwrap_or_else(|e| panic!("{}: {e}: {first:?}", script.display()));
-    let port = port["port"].as_u64().unwrap();
+    (peer, out, port["port"].as_u64().unwrap())
+}
+
+/// The rest of the ground station's output: its report.
+fn station_report(mut peer: Child, mut out: BufReader<ChildStdout>) -> serde_json::Value {
+    let mut report = String::new();
+    std::io::Read::read_to_string(&mut out, &mut report).unwrap();
+    assert!(peer.wait().unwrap().success(), "{report}");
+    serde_json::from_str(&report).unwrap_or_else(|e| panic!("{e}: {report}"))
+}
+
+#[test]
+fn a_mavlink_ground_station_receives_heartbeats_and_the_commands_in_order() {
+    let (log, frames) = flight();
+    let tmp = tempfile::tempdir().unwrap();
+    let mut args = replay_files(tmp.path(), &log, &frames);
+    let (mut peer, mut out, port) = ground_station(&["30"]);
     args.extend(["--mavlink".into(), format!("udpout:127.0.0.1:{port}")]);
     let started = Instant::now();
     let err = run_pilot(&args);
@@ -307,4 +322,92 @@ fn a_mavlink_ground_station_receives_heartbeats_and_the_commands_in_order() {
         .and_then(|p| p.split_whitespace().next()?.parse().ok())
         .unwrap();
     assert_eq!(hb, heartbeats.len() as u64, "{err}\n{report}");
+}
+
+/// The JSON lines of a pilot run.
+fn lines(jsonl: &Path) -> Vec<serde_json::Value> {
+    std::fs::read_to_string(jsonl)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .filter(|v: &serde_json::Value| v.get("frame").is_some())
+        .collect()
+}
+
+/// The recorded flight's detections fed at 30 frames/s (paced, as a camera would),
+/// with two seconds of empty frames after them, and the distance flown and the
+/// heading taken from a simulated autopilot over MAVLink: flying at the recorded speed
+/// and turning when told, it steers the pilot through the turn to the landing; an
+/// autopilot that never turns leaves the pilot waiting for the turn to end.
+#[test]
+fn the_autopilots_position_and_heading_carry_the_flight() {
+    let (log, frames) = flight();
+    let speed = (STEP_M * FPS).to_string();
+    let half_cell = config().signs.cell_m / 2.0;
+    for turns in [true, false] {
+        let tmp = tempfile::tempdir().unwrap();
+        let mut args = replay_files(tmp.path(), &log, &frames);
+        let blank = image::RgbImage::from_pixel(96, 54, image::Rgb([120, 120, 120]));
+        for i in frames.len()..frames.len() + 60 {
+            blank
+                .save(tmp.path().join("frames").join(format!("{i:04}.png")))
+                .unwrap();
+        }
+        // paced, and no flight log: the autopilot's odometry instead
+        args.retain(|a| a != "--every-frame");
+        let i = args.iter().position(|a| a == "--odometry").unwrap();
+        args.drain(i..i + 2);
+        let mode = if turns { "turn" } else { "no-turn" };
+        let (peer, out, port) = ground_station(&["12", &speed, mode]);
+        args.extend([
+            "--mavlink".into(),
+            format!("udpout:127.0.0.1:{port}"),
+            "--mavlink-odometry".into(),
+        ]);
+        let err = run_pilot(&args);
+        let got = station_report(peer, out);
+        let lines = lines(&tmp.path().join("pilot.jsonl"));
+        let action = |name: &str| {
+            lines
+                .iter()
+                .find(|l| l["action"] == name)
+                .unwrap_or_else(|| panic!("no {name} ({turns}): {err}"))
+        };
+        // the autopilot's pose from the first frames on, none dead-reckoned after
+        let first = lines
+            .iter()
+            .position(|l| l["odometry"] == "mavlink")
+            .unwrap_or_else(|| panic!("{err}"));
+        assert!(first < 10, "{first}: {err}");
+        assert!(lines[first..].iter().all(|l| l["odometry"] == "mavlink"));
+        // the turn at the navigator's distance from the sign, read off the autopilot's
+        // path (jitter not counted)
+        let turn = action("turn_left");
+        let odo = turn["odometer_m"].as_f64().unwrap();
+        assert!(
+            (odo - (SIGN_AHEAD_M - half_cell)).abs() < 0.3,
+            "turned at {odo} m: {err}"
+        );
+        assert!(turn["yaw_deg"].as_f64().unwrap().abs() < 1.0);
+        let sent: Vec<u64> = got["commands"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c["command"].as_u64().unwrap())
+            .collect();
+        if turns {
+            // the landing after the autopilot's quarter turn counter-clockwise
+            let land = action("land");
+            let yaw = land["yaw_deg"].as_f64().unwrap();
+            assert!((yaw + 90.0).abs() <= 3.0, "landed at heading {yaw}: {err}");
+            assert_eq!(sent, [115, 21], "{got}");
+            let final_yaw = got["final_yaw"].as_f64().unwrap();
+            assert!((final_yaw - (2.0 - std::f64::consts::FRAC_PI_2)).abs() < 1e-6);
+        } else {
+            // still turning when the footage ends: no landing
+            assert_eq!(sent, [115], "{got}");
+            assert_eq!(lines.last().unwrap()["mode"], "turning", "{err}");
+        }
+        assert!(got["poses_sent"].as_u64().unwrap() > 100, "{got}");
+    }
 }
