@@ -759,7 +759,27 @@ impl Ctx {
         if f.gif {
             ad.push("--gif".into());
         }
-        let commands = vec![self.frugal(&self.quiet(st))?, self.frugal(&self.quiet(ad))?];
+        // The two perceptions fly at the same time when the cores allow (each flight runs
+        // ONNX Runtime on `threads` threads): the stage takes as long as the slower side
+        // instead of both one after the other, and both sides see the same machine load.
+        // The static side (the slower) shows the progress bar.
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let together = 2 * f.threads <= cores;
+        let st = self.quiet(st);
+        let (st_line, ad_line) = if together {
+            ad.push("--quiet".into());
+            std::thread::scope(|s| {
+                let adaptive = s.spawn(|| self.frugal(&ad));
+                let stat = self.frugal(&st);
+                let adaptive = adaptive
+                    .join()
+                    .unwrap_or_else(|_| Err(anyhow::anyhow!("the adaptive flights panicked")));
+                (stat, adaptive)
+            })
+        } else {
+            (self.frugal(&st), self.frugal(&self.quiet(ad)))
+        };
+        let commands = vec![st_line?, ad_line?];
         let rows = super::flights::compare_flights(out, &self.config, &static_name)?;
         write_json(&out.join("comparison.json"), &rows)?;
         Ok(commands)
