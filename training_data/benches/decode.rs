@@ -16,7 +16,8 @@
 //! printed too, as it moves less when other work shares the machine.
 //!
 //! `cargo bench -p frugal-data --bench decode`; set `FRUGAL_BENCH_SECONDS` for a
-//! shorter or longer file.
+//! shorter or longer file, or `FRUGAL_BENCH_FILE` to time a video of one's own
+//! instead of `testsrc2` (its frames are counted by a first pass of the reader).
 use frugal_data::media::{DecodedFrame, Sampling, VideoReader};
 use std::path::Path;
 use std::process::{Command, Stdio};
@@ -42,31 +43,22 @@ fn main() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(20);
     let dir = tempfile::tempdir().expect("temporary folder");
-    let file = dir.path().join("testsrc2-720p.mp4");
-    let made = Instant::now();
-    let status = Command::new("ffmpeg")
-        .args([
-            "-hide_banner",
-            "-nostdin",
-            "-v",
-            "error",
-            "-y",
-            "-f",
-            "lavfi",
-            "-i",
-        ])
-        .arg(format!("testsrc2=size=1280x720:rate=30:duration={seconds}"))
-        .args(["-c:v", "libx264", "-pix_fmt", "yuv420p"])
-        .arg(&file)
-        .status()
-        .expect("ffmpeg runs");
-    assert!(status.success(), "could not make the test file");
-    let frames = u64::from(seconds) * 30;
-    println!(
-        "test file: {frames} frames of 1280x720 H.264 ({:.1} MB), made in {:.1} s",
-        std::fs::metadata(&file).map_or(0.0, |m| m.len() as f64 / 1e6),
-        made.elapsed().as_secs_f64()
-    );
+    let (file, frames) = match std::env::var_os("FRUGAL_BENCH_FILE") {
+        Some(own) => {
+            let file = std::path::PathBuf::from(own);
+            let frames = reader(&file, None, false);
+            println!(
+                "test file: {} ({frames} frames, {:.1} MB)",
+                file.display(),
+                std::fs::metadata(&file).map_or(0.0, |m| m.len() as f64 / 1e6),
+            );
+            (file, frames)
+        }
+        None => {
+            let file = dir.path().join("testsrc2-720p.mp4");
+            (file.clone(), make_testsrc2(&file, seconds))
+        }
+    };
 
     let cases = [
         ("(a)  ffmpeg decode only (-f null)", Run::Plain(None)),
@@ -209,4 +201,33 @@ fn reader(file: &Path, size: Option<(u32, u32)>, reuse: bool) -> u64 {
     }
     std::hint::black_box(checksum);
     reader.frames_read()
+}
+
+/// A `seconds`-long 30 fps 1280×720 H.264 `testsrc2` file at `file`; its frame count.
+fn make_testsrc2(file: &Path, seconds: u32) -> u64 {
+    let made = Instant::now();
+    let status = Command::new("ffmpeg")
+        .args([
+            "-hide_banner",
+            "-nostdin",
+            "-v",
+            "error",
+            "-y",
+            "-f",
+            "lavfi",
+            "-i",
+        ])
+        .arg(format!("testsrc2=size=1280x720:rate=30:duration={seconds}"))
+        .args(["-c:v", "libx264", "-pix_fmt", "yuv420p"])
+        .arg(file)
+        .status()
+        .expect("ffmpeg runs");
+    assert!(status.success(), "could not make the test file");
+    let frames = u64::from(seconds) * 30;
+    println!(
+        "test file: {frames} frames of 1280x720 H.264 ({:.1} MB), made in {:.1} s",
+        std::fs::metadata(file).map_or(0.0, |m| m.len() as f64 / 1e6),
+        made.elapsed().as_secs_f64()
+    );
+    frames
 }

@@ -3,8 +3,8 @@
 //! * `cargo xtask setup` — fetch and assemble what the workspace needs, idempotently:
 //!   a CPU-only libtorch for `tch` 0.26, the ONNX Runtime library for `ort`
 //!   2.0.0-rc.15, a Python environment with the test peers (onnx, onnxruntime,
-//!   OpenCV, pycocotools, pymdptoolbox, scikit-image), the `thumbv7em-none-eabihf`
-//!   target and the system packages plotting needs. Big downloads live in a cache
+//!   OpenCV, pycocotools, pymdptoolbox, scikit-image, pymavlink), the `thumbv7em-none-eabihf`
+//!   target and the system packages plotting and video need. Big downloads live in a cache
 //!   outside the clone (`$FRUGAL_CACHE`, default `~/.cache/frugal`); the clone's
 //!   git-ignored `.deps/` only links to it, so a fresh clone does not fetch again.
 //! * `cargo xtask run [ARGS]` — set up, then run the main job (`frugal run`).
@@ -64,7 +64,8 @@ enum Torch {
 const ORT_DIR: &str = "onnxruntime-1.31.1";
 const ORT_LIB: &str = "libonnxruntime.so.1.31.1";
 const BARE_METAL_TARGET: &str = "thumbv7em-none-eabihf";
-/// Debian packages: fontconfig and a TrueType font for plot labels.
+/// Debian packages: fontconfig and a TrueType font for plot labels, and FFmpeg for
+/// video import and the pilot.
 const APT_PACKAGES: &[&str] = &["libfontconfig1-dev", "fonts-dejavu-core", "ffmpeg"];
 
 type Result<T> = std::result::Result<T, String>;
