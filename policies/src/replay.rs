@@ -144,7 +144,10 @@ pub struct ReplayLog {
     pub format: String,
     /// [`LOG_VERSION`].
     pub version: u32,
-    /// The dataset folder the frames come from (empty for in-memory clips).
+    /// The dataset folder the frames come from (empty for in-memory clips). A dataset
+    /// inside the log's own folder is saved relative to that folder, so the two can
+    /// move together (a run stage's folder is renamed when it finishes); [`Self::load`]
+    /// resolves it again.
     pub dataset: PathBuf,
     /// Number of classes.
     pub classes: usize,
@@ -223,19 +226,54 @@ impl ReplayLog {
         Ok(added)
     }
 
-    /// Save as JSON through a temporary file and a rename.
+    /// Save as JSON through a temporary file and a rename (a dataset inside the log's
+    /// folder relative to it).
     pub fn save(&self, path: &Path) -> Result<()> {
-        frugal_data::dataset::write_json_atomic(path, self).map_err(PolicyError::from)
+        let folder = path.parent().unwrap_or(Path::new(""));
+        let inside = match (
+            std::path::absolute(&self.dataset),
+            std::path::absolute(folder),
+        ) {
+            (Ok(data), Ok(folder)) if !self.dataset.as_os_str().is_empty() => data
+                .strip_prefix(&folder)
+                .ok()
+                .filter(|rel| !rel.as_os_str().is_empty())
+                .map(|rel| Path::new(".").join(rel)),
+            _ => None,
+        };
+        // `./…` marks a path relative to the log's folder: any other path is saved
+        // without a leading `./` (it means the same from the working directory)
+        let dataset = inside.or_else(|| {
+            self.dataset
+                .strip_prefix(".")
+                .ok()
+                .filter(|_| self.dataset.starts_with("."))
+                .map(Path::to_path_buf)
+        });
+        match dataset {
+            Some(dataset) => {
+                let mut log = self.clone();
+                log.dataset = dataset;
+                frugal_data::dataset::write_json_atomic(path, &log)
+            }
+            None => frugal_data::dataset::write_json_atomic(path, self),
+        }
+        .map_err(PolicyError::from)
     }
 
-    /// Load and check a saved log.
+    /// Load and check a saved log; a dataset saved relative to the log's folder
+    /// (`./…`) is found there again.
     pub fn load(path: &Path) -> Result<Self> {
         let text = std::fs::read_to_string(path).map_err(|e| PolicyError::io(path, e))?;
-        let log: ReplayLog = serde_json::from_str(&text).map_err(|e| PolicyError::Parse {
+        let mut log: ReplayLog = serde_json::from_str(&text).map_err(|e| PolicyError::Parse {
             path: path.into(),
             message: e.to_string(),
         })?;
         log.check(path)?;
+        if log.dataset.starts_with(".") {
+            let folder = path.parent().unwrap_or(Path::new(""));
+            log.dataset = folder.join(log.dataset.strip_prefix(".").unwrap_or(&log.dataset));
+        }
         Ok(log)
     }
 

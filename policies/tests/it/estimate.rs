@@ -387,6 +387,33 @@ fn replay_log_round_trips_and_rejects_a_wrong_version() {
     assert!(e.contains("replay.json") && e.contains("version 9"), "{e}");
 }
 
+/// A dataset inside the log's folder moves with it: a run stage writes into
+/// `<stage>.partial/` and renames the folder when it is done.
+#[test]
+fn a_dataset_beside_the_log_is_found_after_the_folder_moves() {
+    let (mut log, _) = log2();
+    let dir = tempfile::tempdir().unwrap();
+    let partial = dir.path().join("budget.partial");
+    log.dataset = partial.join("heldout").join("data");
+    let p = partial.join("heldout").join("replay.json");
+    std::fs::create_dir_all(&log.dataset).unwrap();
+    log.save(&p).unwrap();
+    let text = std::fs::read_to_string(&p).unwrap();
+    assert!(text.contains("\"dataset\": \"./data\""), "{text}");
+    let done = dir.path().join("budget");
+    std::fs::rename(&partial, &done).unwrap();
+    let moved = ReplayLog::load(&done.join("heldout").join("replay.json")).unwrap();
+    assert_eq!(moved.dataset, done.join("heldout").join("data"));
+    // a dataset elsewhere stays as given, a leading `./` dropped (it means the same)
+    log.dataset = "./elsewhere/data".into();
+    let q = done.join("other.json");
+    log.save(&q).unwrap();
+    assert_eq!(
+        ReplayLog::load(&q).unwrap().dataset,
+        std::path::Path::new("elsewhere/data")
+    );
+}
+
 #[test]
 fn estimated_mdp_solves_the_same_in_pymdptoolbox() {
     let (log, _) = log3();
