@@ -360,6 +360,7 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
     let yaw_rate = config.nav.yaw_rate_deg.to_radians();
     let mut autopilot = odometry::MavOdometry::default();
     let mut waiting_reported = false;
+    let mut last_read_error: Option<String> = None;
     let turn_tolerance = config.mavlink.turn_tolerance_deg.to_radians();
     let result = loop {
         if stop.load(Ordering::Relaxed) {
@@ -393,8 +394,19 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
             && let Some(link) = link.as_ref()
         {
             match link.poll(&mut autopilot) {
-                Ok(n) => summary.mavlink_received += n,
-                Err(e) => report(&e.to_string()),
+                Ok(n) => {
+                    summary.mavlink_received += n;
+                    last_read_error = None;
+                }
+                // a failing link fails on every frame: say so once, and again when
+                // the error changes or after it has cleared
+                Err(e) => {
+                    let message = e.to_string();
+                    if last_read_error.as_deref() != Some(message.as_str()) {
+                        report(&message);
+                        last_read_error = Some(message);
+                    }
+                }
             }
             from_autopilot = autopilot.pose();
             if from_autopilot.is_none() && !waiting_reported {
