@@ -201,6 +201,19 @@ fn percentile(sorted: &[f64], q: f64) -> f64 {
     sorted[i.min(sorted.len() - 1)]
 }
 
+/// Where the distance flown and the heading of a frame came from (the JSON lines'
+/// `odometry`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+enum PoseSource {
+    /// The flight log (`--odometry`).
+    Log,
+    /// The autopilot (`--mavlink-odometry`).
+    Mavlink,
+    /// Dead reckoning.
+    Reckoned,
+}
+
 /// Where detections come from: the bundle's detectors, or a replayed file.
 enum Perception {
     Bundle(Box<BundlePerception>),
@@ -423,7 +436,7 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
                     r.odometer_m,
                     r.yaw_rad,
                     r.pedestrian_close,
-                    "log",
+                    PoseSource::Log,
                 ),
                 None => {
                     break Err(PilotError::Usage(format!(
@@ -436,9 +449,13 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
                     )));
                 }
             },
-            (None, Some((odo, yaw))) => {
-                (started.elapsed().as_secs_f64(), odo, yaw, false, "mavlink")
-            }
+            (None, Some((odo, yaw))) => (
+                started.elapsed().as_secs_f64(),
+                odo,
+                yaw,
+                false,
+                PoseSource::Mavlink,
+            ),
             (None, None) => {
                 let t = started.elapsed().as_secs_f64();
                 let dt = t - reckoner.last_t.unwrap_or(t);
@@ -456,13 +473,13 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
                     }
                 }
                 reckoner.last_t = Some(t);
-                (t, reckoner.odo, reckoner.yaw, false, "reckoned")
+                (t, reckoner.odo, reckoner.yaw, false, PoseSource::Reckoned)
             }
         };
         // a real heading never lands exactly on the target: the autopilot's counts
         // within the configured tolerance
         let turn_done = navigator.mode() == Mode::Turning
-            && if source == "mavlink" {
+            && if source == PoseSource::Mavlink {
                 wrap(target_yaw - yaw).abs() <= turn_tolerance
             } else {
                 reached(target_yaw, yaw)

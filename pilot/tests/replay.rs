@@ -267,15 +267,13 @@ fn a_mavlink_ground_station_receives_heartbeats_and_the_commands_in_order() {
     let (log, frames) = flight();
     let tmp = tempfile::tempdir().unwrap();
     let mut args = replay_files(tmp.path(), &log, &frames);
-    let (mut peer, mut out, port) = ground_station(&["30"]);
+    let (peer, out, port) = ground_station(&["30"]);
     args.extend(["--mavlink".into(), format!("udpout:127.0.0.1:{port}")]);
     let started = Instant::now();
     let err = run_pilot(&args);
-    let mut report = String::new();
-    std::io::Read::read_to_string(&mut out, &mut report).unwrap();
-    assert!(peer.wait().unwrap().success(), "{report}");
+    let got = station_report(peer, out);
     assert!(started.elapsed() < Duration::from_secs(60));
-    let got: serde_json::Value = serde_json::from_str(&report).unwrap();
+    let report = got.to_string();
     assert_eq!(got["bad"], 0, "{report}");
     let heartbeats = got["heartbeats"].as_array().unwrap();
     assert!(!heartbeats.is_empty(), "{report}");

@@ -243,13 +243,7 @@ impl ReplayLog {
         };
         // `./…` marks a path relative to the log's folder: any other path is saved
         // without a leading `./` (it means the same from the working directory)
-        let dataset = inside.or_else(|| {
-            self.dataset
-                .strip_prefix(".")
-                .ok()
-                .filter(|_| self.dataset.starts_with("."))
-                .map(Path::to_path_buf)
-        });
+        let dataset = inside.or_else(|| self.dataset.strip_prefix(".").ok().map(Path::to_path_buf));
         match dataset {
             Some(dataset) => {
                 let mut log = self.clone();
@@ -270,9 +264,8 @@ impl ReplayLog {
             message: e.to_string(),
         })?;
         log.check(path)?;
-        if log.dataset.starts_with(".") {
-            let folder = path.parent().unwrap_or(Path::new(""));
-            log.dataset = folder.join(log.dataset.strip_prefix(".").unwrap_or(&log.dataset));
+        if let Ok(rel) = log.dataset.strip_prefix(".") {
+            log.dataset = path.parent().unwrap_or(Path::new("")).join(rel);
         }
         Ok(log)
     }
