@@ -1,6 +1,9 @@
-//! Accuracy and latency of exported variants through ONNX Runtime, measured in one
-//! interleaved pass: for every validation frame, every variant detects it in turn and
-//! is timed, so the shared machine's load changes hit all variants alike.
+//! Accuracy and latency of exported variants through ONNX Runtime. Latency comes from
+//! one interleaved pass over the timed frames (an even spread of the validation
+//! frames): for every such frame, every variant detects it in turn and is timed, so
+//! the shared machine's load changes hit all variants alike, and nothing else of the
+//! measurement runs meanwhile. The other frames are then scored for accuracy only,
+//! split over the cores; detections do not depend on which worker made them.
 //!
 //! The fronts in the report are noise-aware ([`front_within_noise`]): each variant's
 //! latency noise is [`Latency::noise_ms`] of its timed runs, and each accuracy's
@@ -19,7 +22,7 @@ use frugal_data::{Dataset, FrameRecord, Split};
 use frugal_models::metrics::{ImageResult, Interpolation, evaluate};
 use frugal_models::onnx::OrtDetector;
 use frugal_models::train::{frame_truth, scenario, spread};
-use frugal_runtime::FrameRef;
+use frugal_runtime::{Detection, FrameRef};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -123,6 +126,12 @@ pub struct ParetoOptions {
     pub threads: usize,
     /// Validation frames (spread evenly; 0 = all).
     pub frames: usize,
+    /// Of those, the frames timed (spread evenly; 0 = all): one worker detects them
+    /// with the other cores idle. The rest are scored for accuracy only, split over
+    /// `workers`.
+    pub timed_frames: usize,
+    /// Workers (each with its own sessions of `threads` threads) for the untimed frames.
+    pub workers: usize,
     /// Untimed warm-up detections per variant.
     pub warmup: usize,
     /// Score threshold of P/R/F1/IoU.
@@ -138,6 +147,8 @@ pub struct ParetoOptions {
 pub struct ParetoReport {
     /// Validation frames scored per variant.
     pub frames: usize,
+    /// Of those, the frames timed per variant.
+    pub timed_frames: usize,
     /// Validation videos those frames come from (the bootstrap's clusters).
     pub videos: usize,
     /// Bootstrap resamples behind the standard errors.
@@ -239,6 +250,60 @@ fn mark_fronts(
     (f, plain)
 }
 
+/// The indices of the frames to time: `n` when `count` is 0 or at least `n`, else
+/// `count` of them spread evenly.
+fn timed_frames(n: usize, count: usize) -> Vec<usize> {
+    if count == 0 || count >= n {
+        return (0..n).collect();
+    }
+    (0..count).map(|i| i * n / count).collect()
+}
+
+/// Per variant, what it found on a frame and (timed frames) how long it took, ms.
+type FrameOutcome = Vec<(Vec<Detection>, Option<f64>)>;
+
+/// Every variant detects frame `f` (the `fi`-th of the pass) in turn: what each found
+/// and, when `timed`, how long it took (ms). The starting variant rotates with `fi` so
+/// that none always runs right after the frame load. `warmup`: untimed detections per
+/// variant first.
+fn detect_frame(
+    ds: &Dataset,
+    f: &FrameRecord,
+    dets: &mut [OrtDetector],
+    fi: usize,
+    timed: bool,
+    warmup: Option<usize>,
+) -> Result<FrameOutcome, ParetoError> {
+    let ort_err = |e: frugal_models::onnx::OrtError| ParetoError::Input(e.to_string());
+    let rgb = ds
+        .load_rgb(f)
+        .map_err(|e| ParetoError::Input(e.to_string()))?;
+    let frame = FrameRef::new(rgb.width(), rgb.height(), rgb.as_raw())
+        .ok_or_else(|| ParetoError::Input(format!("{}: bad pixel buffer", f.file.display())))?;
+    if let Some(w) = warmup {
+        for d in dets.iter_mut() {
+            measure(w, 0, |_| d.detect(frame).map(|_| ())).map_err(ort_err)?;
+        }
+    }
+    let k = dets.len();
+    let mut out = vec![(Vec::new(), None); k];
+    for j in 0..k {
+        let i = (j + fi) % k;
+        out[i] = if timed {
+            let mut found = Vec::new();
+            let lat = measure(0, 1, |_| {
+                found = dets[i].detect(frame)?;
+                Ok(())
+            })
+            .map_err(ort_err)?;
+            (found, lat.map(|l| l.median_ms))
+        } else {
+            (dets[i].detect(frame).map_err(ort_err)?, None)
+        };
+    }
+    Ok(out)
+}
+
 /// Measure every variant in `opts.variants` and write `pareto.json`, `pareto.csv`,
 /// `confidence.json`, the plots `pareto_{map,f1,iou}.{png,svg}` and `variants.json`
 /// (the mAP front, for `frugal policy record`).
@@ -254,59 +319,103 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
     }
     let frames = spread(all, opts.frames);
     let n = frames.len();
-    let mut dets = Vec::new();
-    for v in &variants {
-        dets.push(
-            OrtDetector::open(&v.dir, opts.threads)
-                .map_err(|e| ParetoError::Input(e.to_string()))?,
-        );
-    }
-    let ort_err = |e: frugal_models::onnx::OrtError| ParetoError::Input(e.to_string());
+    let open_all = || -> Result<Vec<OrtDetector>, ParetoError> {
+        variants
+            .iter()
+            .map(|v| {
+                OrtDetector::open(&v.dir, opts.threads)
+                    .map_err(|e| ParetoError::Input(e.to_string()))
+            })
+            .collect()
+    };
+    let mut dets = open_all()?;
     let k = variants.len();
-    let mut samples = vec![Vec::with_capacity(n); k];
+    let timed = timed_frames(n, opts.timed_frames);
+    let untimed: Vec<usize> = (0..n).filter(|i| !timed.contains(i)).collect();
+    let workers = opts.workers.clamp(1, untimed.len().max(1));
+    let t0 = std::time::Instant::now();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let tick = || {
+        let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        if opts.progress && d.is_multiple_of(20) {
+            eprintln!(
+                "pareto: frame {d}/{n} ({:.0} s)",
+                t0.elapsed().as_secs_f64()
+            );
+        }
+    };
+    // per frame, per variant: what it found and (timed frames) how long it took
+    let mut found: Vec<Option<FrameOutcome>> = vec![None; n];
+    // 1. the timed frames, one worker, the other cores idle: latency as deployed
+    for (j, &fi) in timed.iter().enumerate() {
+        found[fi] = Some(detect_frame(
+            &ds,
+            frames[fi],
+            &mut dets,
+            fi,
+            true,
+            (j == 0).then_some(opts.warmup),
+        )?);
+        tick();
+    }
+    // 2. the other frames, accuracy only, split over the workers
+    let parts: Vec<Vec<(usize, FrameOutcome)>> = std::thread::scope(|sc| {
+        let mut own = Some(&mut dets);
+        let handles: Vec<_> = (0..workers)
+            .map(|w| {
+                let mine: Vec<usize> = untimed.iter().copied().skip(w).step_by(workers).collect();
+                let reuse = if w == 0 { own.take() } else { None };
+                let (ds, frames, tick, open_all) = (&ds, &frames, &tick, &open_all);
+                sc.spawn(move || -> Result<_, ParetoError> {
+                    let mut opened;
+                    let d = match reuse {
+                        Some(d) => d,
+                        None => {
+                            opened = open_all()?;
+                            &mut opened
+                        }
+                    };
+                    mine.into_iter()
+                        .map(|fi| {
+                            let r = detect_frame(ds, frames[fi], d, fi, false, None)?;
+                            tick();
+                            Ok((fi, r))
+                        })
+                        .collect()
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                h.join().unwrap_or_else(|_| {
+                    Err(ParetoError::Input("a measuring worker panicked".into()))
+                })
+            })
+            .collect::<Result<_, _>>()
+    })?;
+    for (fi, r) in parts.into_iter().flatten() {
+        found[fi] = Some(r);
+    }
+    let mut samples = vec![Vec::with_capacity(timed.len()); k];
     let mut results: Vec<Vec<ImageResult>> = vec![Vec::with_capacity(n); k];
     let mut tops: Vec<BTreeMap<String, Vec<Option<f32>>>> = vec![BTreeMap::new(); k];
-    let t0 = std::time::Instant::now();
-    for (fi, f) in frames.iter().enumerate() {
-        let rgb = ds
-            .load_rgb(f)
-            .map_err(|e| ParetoError::Input(e.to_string()))?;
-        let frame = FrameRef::new(rgb.width(), rgb.height(), rgb.as_raw())
-            .ok_or_else(|| ParetoError::Input(format!("{}: bad pixel buffer", f.file.display())))?;
-        if fi == 0 {
-            for d in dets.iter_mut() {
-                measure(opts.warmup, 0, |_| d.detect(frame).map(|_| ())).map_err(ort_err)?;
-            }
-        }
+    for (fi, per_variant) in found.into_iter().enumerate() {
+        let f = frames[fi];
         let sc = scenario(&ds, f);
-        // rotate the starting variant so none always runs right after the frame load
-        for j in 0..k {
-            let i = (j + fi) % k;
-            let mut found = Vec::new();
-            let lat = measure(0, 1, |_| {
-                found = dets[i].detect(frame)?;
-                Ok(())
-            })
-            .map_err(ort_err)?;
-            if let Some(l) = lat {
-                samples[i].push(l.median_ms);
+        for (i, (dets, ms)) in per_variant.unwrap_or_default().into_iter().enumerate() {
+            if let Some(ms) = ms {
+                samples[i].push(ms);
             }
             tops[i]
                 .entry(sc.clone())
                 .or_default()
-                .push(found.first().map(|d| d.score));
+                .push(dets.first().map(|d| d.score));
             results[i].push(ImageResult {
-                detections: found,
+                detections: dets,
                 truth: frame_truth(f),
                 ignore: f.ignore.clone(),
             });
-        }
-        if opts.progress && (fi + 1) % 20 == 0 {
-            eprintln!(
-                "pareto: frame {}/{n} ({:.0} s)",
-                fi + 1,
-                t0.elapsed().as_secs_f64()
-            );
         }
     }
     let num_classes = dets.first().map_or(1, |d| d.spec().num_classes);
@@ -423,6 +532,7 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
     }
     let report = ParetoReport {
         frames: n,
+        timed_frames: timed.len(),
         videos,
         bootstrap_resamples: resamples.len(),
         latency_noise_floor: crate::stats::LATENCY_NOISE_FLOOR,
@@ -667,6 +777,7 @@ mod tests {
         }
         let report = ParetoReport {
             frames: 720,
+            timed_frames: 180,
             videos: 12,
             bootstrap_resamples: BOOTSTRAP_RESAMPLES,
             latency_noise_floor: crate::stats::LATENCY_NOISE_FLOOR,

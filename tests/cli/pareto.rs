@@ -227,4 +227,38 @@ fn compress_then_pareto_on_a_tiny_model() {
         );
         assert!(v["latency_ms"].as_f64().unwrap() > 0.0);
     }
+    assert_eq!(report["timed_frames"], 4);
+
+    // timing one frame and scoring the other three on every core changes the timings
+    // only: every variant's accuracy and confidences are those of the all-timed pass
+    let out1 = tmp.path().join("pareto-timed1");
+    frugal(&[
+        "pareto",
+        "--variants",
+        p(&vars),
+        "--data",
+        p(&data),
+        "--out",
+        p(&out1),
+        "--frames",
+        "4",
+        "--timed-frames",
+        "1",
+        "--warmup",
+        "1",
+        "--quiet",
+    ])
+    .unwrap();
+    let r1 = json(&out1.join("pareto.json"));
+    assert_eq!(
+        (r1["frames"].as_u64(), r1["timed_frames"].as_u64()),
+        (Some(4), Some(1))
+    );
+    for (a, b) in vs.iter().zip(r1["variants"].as_array().unwrap()) {
+        assert_eq!(a["name"], b["name"]);
+        assert_eq!(b["latency"]["runs"], 1, "{}", b["name"]);
+        for key in ["map", "f1", "mean_iou", "precision", "recall", "confidence"] {
+            assert_eq!(a[key], b[key], "{} {key}", a["name"]);
+        }
+    }
 }

@@ -22,6 +22,10 @@ pub struct ParetoArgs {
     /// Validation frames, spread evenly (0 = all).
     #[arg(long, default_value_t = 0)]
     pub frames: usize,
+    /// Of those, the frames timed, spread evenly (0 = all). One worker times them
+    /// while the other cores idle; the rest are scored for accuracy on every core.
+    #[arg(long, default_value_t = 0)]
+    pub timed_frames: usize,
     /// Untimed warm-up detections per variant.
     #[arg(long, default_value_t = 3)]
     pub warmup: usize,
@@ -44,6 +48,10 @@ pub fn run(args: ParetoArgs) -> anyhow::Result<()> {
         out: args.out.clone(),
         threads: args.threads,
         frames: args.frames,
+        timed_frames: args.timed_frames,
+        // the untimed frames: as many workers of `threads` threads as the cores hold
+        workers: std::thread::available_parallelism()
+            .map_or(1, |c| (c.get() / args.threads.max(1)).max(1)),
         warmup: args.warmup,
         score_threshold: args.threshold,
         docs_png: args.docs_png.clone(),
@@ -54,9 +62,10 @@ pub fn run(args: ParetoArgs) -> anyhow::Result<()> {
         println!("front ({metric}): {}", names.join(" → "));
     }
     println!(
-        "{} variants × {} validation frames; wrote {}/pareto.json, pareto.csv, pareto_*.png|svg, confidence.json, variants.json",
+        "{} variants × {} validation frames ({} timed); wrote {}/pareto.json, pareto.csv, pareto_*.png|svg, confidence.json, variants.json",
         report.variants.len(),
         report.frames,
+        report.timed_frames,
         args.out.display()
     );
     Ok(())

@@ -38,7 +38,7 @@ mod perceiver;
 mod segments;
 mod solve;
 
-pub use perceiver::Perceiver;
+pub use perceiver::{Perceiver, VideoCache};
 pub use segments::{Segment, video_segments};
 pub use solve::train_budget;
 

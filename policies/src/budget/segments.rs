@@ -8,7 +8,7 @@ use crate::scoring::ground_truth;
 use frugal_runtime::BBox;
 use frugal_runtime::schedule::{Content, ContentEdges};
 
-use super::{BudgetConfig, Perceiver, TrackState, largest, shown_f1};
+use super::{BudgetConfig, Perceiver, TrackState, VideoCache, largest, shown_f1};
 
 /// One replayed segment: `v` detects frame `t`, the tracker carries its boxes.
 #[derive(Clone, Debug, Default)]
@@ -30,14 +30,14 @@ pub fn video_segments(
     cfg: &BudgetConfig,
     iou: f32,
 ) -> Result<Vec<Vec<Segment>>> {
+    let cache = VideoCache::default();
     let longest = *cfg.periods.last().unwrap_or(&1) as usize;
     let n = video.frames.len();
     let mut out = Vec::with_capacity(n);
     for t in 0..n {
         let mut row = Vec::with_capacity(log.variants.len());
         for v in 0..log.variants.len() {
-            let mut p = Perceiver::new(log, video, frames, cost, cfg.max_tracks);
-            p.load(t)?;
+            let mut p = Perceiver::new(log, video, frames, &cache, cost, cfg.max_tracks);
             let (shown, score, ms) = p.detect(t, v)?;
             let tr = ground_truth(video, t);
             let mut seg = Segment {

@@ -29,7 +29,7 @@ pub use score::{
     BudgetScore, Margin, budget_csv, budget_margins, budget_scores, budget_table, plot_budget,
 };
 
-use crate::budget::{BudgetPolicies, Perceiver, TrackState, largest};
+use crate::budget::{BudgetPolicies, Perceiver, TrackState, VideoCache, largest};
 use crate::error::{PolicyError, Result};
 use crate::replay::{Frames, ReplayLog, VideoLog};
 use crate::scoring::{TrackerCost, correct};
@@ -86,6 +86,45 @@ impl BudgetStrategy {
 
     fn tracker(self) -> bool {
         !matches!(self, BudgetStrategy::Static | BudgetStrategy::Oracle)
+    }
+}
+
+/// What decides a strategy's stream under a budget besides the video and the clock
+/// run: two (budget, strategy) pairs with equal behaviour stream identically.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Behaviour {
+    /// A fixed action (static: the variant at period 1; static+tracker).
+    Fixed(BudgetStrategy, usize),
+    /// A uniform draw, at every decision, from these actions.
+    Random(Vec<usize>),
+    /// The ApproxDet-style choice among these actions.
+    Approxdet(Vec<usize>),
+    /// The paper's MDP (no budget).
+    Mdp,
+    /// The budget policy's table.
+    Table(Vec<u16>),
+    /// The oracle with this fallback variant.
+    Oracle(usize),
+}
+
+impl BudgetPolicies {
+    /// The behaviour of `strategy` under budget `k`.
+    pub fn behaviour(&self, k: usize, strategy: BudgetStrategy) -> Behaviour {
+        let b = self.config.budgets_ms[k];
+        let st = self.static_under(b);
+        match strategy {
+            BudgetStrategy::Static => Behaviour::Fixed(strategy, self.config.action(st, 0)),
+            BudgetStrategy::StaticTracker => {
+                Behaviour::Fixed(strategy, self.config.action(st, self.period_under(st, b)))
+            }
+            BudgetStrategy::RandomTracker => Behaviour::Random(self.allowed(b)),
+            BudgetStrategy::Approxdet => {
+                Behaviour::Approxdet(self.allowed(b / self.config.approxdet_headroom))
+            }
+            BudgetStrategy::MdpTracker => Behaviour::Mdp,
+            BudgetStrategy::Budget => Behaviour::Table(self.policies[k].actions.clone()),
+            BudgetStrategy::Oracle => Behaviour::Oracle(st),
+        }
     }
 }
 
@@ -247,6 +286,7 @@ pub fn stream_strategy(
     strategy: BudgetStrategy,
     iou: f32,
     clock_run: u32,
+    cache: &VideoCache,
 ) -> Result<BudgetRun> {
     let cfg = &pol.config;
     // clock run 0 charges the measured times; the others jitter them
@@ -281,9 +321,9 @@ pub fn stream_strategy(
         )),
         BudgetStrategy::RandomTracker => {
             let fits = pol.allowed(budget_ms);
-            let rng = rand_chacha::ChaCha8Rng::seed_from_u64(
-                cfg.seed ^ u64::from(video.id) ^ (k as u64) << 32,
-            );
+            // seeded by the video alone: the same choices draw the same stream under
+            // every budget that allows them ([`BudgetPolicies::behaviour`])
+            let rng = rand_chacha::ChaCha8Rng::seed_from_u64(cfg.seed ^ u64::from(video.id));
             period(Chooser::Random(Box::new(rng), fits))
         }
         BudgetStrategy::Approxdet => period(Chooser::Approxdet),
@@ -314,7 +354,7 @@ pub fn stream_strategy(
         video,
         iou,
     };
-    let mut p = Perceiver::new(log, video, frames, cost, cfg.max_tracks);
+    let mut p = Perceiver::new(log, video, frames, cache, cost, cfg.max_tracks);
     let tracker = strategy.tracker();
     let mut detect = Vec::new();
     let arr = video.arrivals_ms(cfg.fps);
@@ -379,22 +419,27 @@ pub fn stream_all(
     let combos: Vec<(usize, BudgetStrategy)> = (0..pol.config.budgets_ms.len())
         .flat_map(|k| BudgetStrategy::ALL.map(|s| (k, s)))
         .collect();
+    let behaviour: Vec<Behaviour> = combos.iter().map(|&(k, s)| pol.behaviour(k, s)).collect();
     // per video, per (budget, strategy), its clock runs
     let per_video: Vec<Vec<Vec<BudgetRun>>> = videos
         .par_iter()
         .map(|v| {
             let cached = crate::replay::MemoryFrames::of_video(frames, v)?;
+            let cache = VideoCache::default();
             let mut out: Vec<Vec<BudgetRun>> = Vec::with_capacity(combos.len());
-            for &(k, s) in &combos {
-                // the paper's MDP knows no budget (nor does its clock's jitter): streamed
-                // once, its runs stand at every budget
-                let first = (s == BudgetStrategy::MdpTracker && k > 0)
-                    .then(|| combos.iter().position(|&c| c == (0, s)))
-                    .flatten();
+            for (i, &(k, s)) in combos.iter().enumerate() {
+                // a strategy that behaves the same under an earlier budget (the paper's
+                // MDP knows none; the same static variant; the same actions to draw
+                // from) streams the same: its runs stand for this budget too
+                let first = (0..i).find(|&j| behaviour[j] == behaviour[i]);
                 let runs = match first {
                     Some(i) => out[i].clone(),
                     None => (0..pol.config.clock_runs)
-                        .map(|c| stream_strategy(log, v, &cached, cost, pol, k, bundle, s, iou, c))
+                        .map(|c| {
+                            stream_strategy(
+                                log, v, &cached, cost, pol, k, bundle, s, iou, c, &cache,
+                            )
+                        })
                         .collect::<Result<Vec<_>>>()?,
                 };
                 progress();

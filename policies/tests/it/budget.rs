@@ -4,7 +4,7 @@
 
 use super::fixture::log3;
 use frugal_data::Split;
-use frugal_policies::budget::{BudgetConfig, BudgetPolicies, train_budget};
+use frugal_policies::budget::{BudgetConfig, BudgetPolicies, VideoCache, train_budget};
 use frugal_policies::budget_eval::{BudgetStrategy, budget_scores, stream_all, stream_strategy};
 use frugal_policies::eval::{EvalConfig, TRACK_POINTS, TrackerCost};
 use frugal_policies::replay::{Frames, VideoLog};
@@ -132,8 +132,10 @@ fn the_runtime_pilot_runs_the_budget_policy_as_the_evaluation() {
     let levels = TrackerParams::DEFAULT.lk.levels;
     let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
     let (mut detections, mut tracked) = (0, 0);
+    // one cache per video for every budget: later budgets read steps back
+    let caches: Vec<VideoCache> = videos.iter().map(|_| VideoCache::default()).collect();
     for k in 0..pol.config.budgets_ms.len() {
-        for video in &videos {
+        for (video, cache) in videos.iter().zip(&caches) {
             let run = stream_strategy(
                 &log,
                 video,
@@ -145,6 +147,7 @@ fn the_runtime_pilot_runs_the_budget_policy_as_the_evaluation() {
                 BudgetStrategy::Budget,
                 0.5,
                 0,
+                cache,
             )
             .unwrap();
             assert_eq!(run.run.outputs.len(), video.frames.len());
@@ -272,5 +275,93 @@ fn a_fifteen_percent_change_of_every_latency_moves_the_budget_policy_little() {
                 );
             }
         }
+    }
+}
+
+/// A perceiver reading tracking steps back from a cache shared by every strategy,
+/// budget and clock run of a video streams exactly what one with a fresh cache does.
+#[test]
+fn a_shared_tracking_cache_changes_no_stream() {
+    let (log, frames, pol) = trained();
+    let mut policy = train(&log, &PolicyConfig::default()).unwrap();
+    policy.budget = Some(pol.clone());
+    let bytes = frugal_policies::bundle::policy_bundle(&policy, EvalConfig::default().thresholds())
+        .unwrap();
+    let mut hits = 0;
+    for video in log.split(Split::Test) {
+        let shared = VideoCache::default();
+        for k in 0..pol.config.budgets_ms.len() {
+            for s in BudgetStrategy::ALL {
+                for c in 0..pol.config.clock_runs {
+                    let stream = |cache: &VideoCache| {
+                        stream_strategy(
+                            &log, video, &frames, COST, &pol, k, &bytes, s, 0.5, c, cache,
+                        )
+                        .unwrap()
+                    };
+                    let fresh = stream(&VideoCache::default());
+                    let before = shared.steps();
+                    let cached = stream(&shared);
+                    hits += usize::from(shared.steps() == before && !fresh.run.outputs.is_empty());
+                    assert_eq!(
+                        fresh.run, cached.run,
+                        "video {} budget {k} {s:?} run {c}",
+                        video.id
+                    );
+                    assert_eq!(fresh.detect, cached.detect);
+                }
+            }
+        }
+    }
+    // most streams repeat steps already taken
+    assert!(hits > 0, "no stream was read back from the cache");
+}
+
+/// Strategies that behave alike under two budgets are streamed once (`stream_all`)
+/// and scored alike.
+#[test]
+fn strategies_that_behave_alike_under_two_budgets_stream_alike() {
+    let (log, frames, pol) = trained();
+    // the loosest budget twice: every strategy behaves the same under both
+    let mut cfg = pol.config.clone();
+    cfg.budgets_ms = vec![33.0, 33.0];
+    let mut twin = pol.clone();
+    twin.config = cfg;
+    twin.policies = vec![pol.policies[0].clone(), pol.policies[0].clone()];
+    for s in BudgetStrategy::ALL {
+        assert_eq!(twin.behaviour(0, s), twin.behaviour(1, s), "{s:?}");
+    }
+    // the tightest budget differs from the loosest for the static variant's period
+    assert_ne!(
+        pol.behaviour(0, BudgetStrategy::StaticTracker),
+        pol.behaviour(2, BudgetStrategy::StaticTracker)
+    );
+    let mut policy = train(&log, &PolicyConfig::default()).unwrap();
+    policy.budget = Some(twin.clone());
+    let bytes = frugal_policies::bundle::policy_bundle(&policy, EvalConfig::default().thresholds())
+        .unwrap();
+    let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
+    let runs = stream_all(&log, &videos, &frames, COST, &twin, &bytes, 0.5, &|| {}).unwrap();
+    for s in BudgetStrategy::ALL {
+        let of = |k: usize| {
+            runs.iter()
+                .find(|r| r.0 == k && r.1 == s)
+                .map(|r| {
+                    r.2.iter()
+                        .map(|b| (b.video, b.run.clone(), b.detect.clone()))
+                        .collect::<Vec<_>>()
+                })
+                .unwrap()
+        };
+        assert_eq!(of(0), of(1), "{s:?}");
+    }
+    let scores = budget_scores(&log, &videos, &twin, &runs, 0.5);
+    assert_eq!(scores.len() % 2, 0);
+    let (a, b) = scores.split_at(scores.len() / 2);
+    for (x, y) in a.iter().zip(b) {
+        assert_eq!(
+            (&x.strategy, &x.scenario, x.sap50, x.f1),
+            (&y.strategy, &y.scenario, y.sap50, y.f1)
+        );
     }
 }

@@ -41,6 +41,9 @@ pub struct ParetoSettings {
     pub threads: usize,
     /// Validation frames scored per variant, spread evenly (0 = all).
     pub frames: usize,
+    /// Of those, the frames timed, spread evenly (0 = all); the others are scored for
+    /// accuracy only, on every core.
+    pub timed_frames: usize,
     /// Untimed warm-up detections per variant.
     pub warmup: usize,
     /// Score threshold of precision / recall / F1 and IoU.
@@ -283,6 +286,7 @@ impl RunConfig {
                 pareto: ParetoSettings {
                     threads: 1,
                     frames: 0,
+                    timed_frames: 180,
                     warmup: 3,
                     threshold: 0.5,
                 },
@@ -323,6 +327,7 @@ impl RunConfig {
                 pareto: ParetoSettings {
                     threads: 1,
                     frames: 0,
+                    timed_frames: 120,
                     warmup: 2,
                     threshold: 0.5,
                 },
@@ -354,6 +359,8 @@ impl RunConfig {
                 pareto: ParetoSettings {
                     threads: 1,
                     frames: 0,
+                    // two of them: the untimed frames run on the other workers
+                    timed_frames: 2,
                     warmup: 1,
                     threshold: 0.5,
                 },

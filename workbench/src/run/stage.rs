@@ -452,6 +452,8 @@ impl Ctx {
                 c.pareto.threads.to_string(),
                 s("--frames"),
                 c.pareto.frames.to_string(),
+                s("--timed-frames"),
+                c.pareto.timed_frames.to_string(),
                 s("--warmup"),
                 c.pareto.warmup.to_string(),
                 s("--threshold"),
