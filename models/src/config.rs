@@ -287,6 +287,9 @@ pub struct TrainConfig {
     pub blur_prob: f64,
     /// Validation frames scored per epoch (0 = the whole split).
     pub val_frames: usize,
+    /// Validate after every this many epochs, and always after the last one; the best
+    /// model is the best of the validated epochs.
+    pub val_every: usize,
     /// Training frames used per epoch (0 = the whole split).
     pub train_frames: usize,
     /// Sampling weight per scenario `"<clutter>-clutter/<light>-light"` (others: 1).
@@ -325,6 +328,7 @@ impl Default for TrainConfig {
             scale_jitter: 0.3,
             channel_gain: 0.1,
             val_frames: 300,
+            val_every: 1,
             train_frames: 0,
             scenario_weights: BTreeMap::from([("high-clutter/low-light".to_string(), 2.0)]),
             threads: 1,
@@ -368,10 +372,15 @@ impl Config {
     pub fn validate(&self, what: &str) -> Result<(), ModelError> {
         self.model.validate(what)?;
         let t = &self.train;
-        if t.epochs == 0 || t.batch_size == 0 || t.rpn_batch == 0 || t.roi_batch == 0 {
+        if t.epochs == 0
+            || t.batch_size == 0
+            || t.rpn_batch == 0
+            || t.roi_batch == 0
+            || t.val_every == 0
+        {
             return Err(ModelError::Config {
                 file: what.to_string(),
-                msg: "epochs, batch_size, rpn_batch and roi_batch must be >= 1".into(),
+                msg: "epochs, batch_size, rpn_batch, roi_batch and val_every must be >= 1".into(),
             });
         }
         if t.lr.is_nan() || t.lr <= 0.0 {

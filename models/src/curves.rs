@@ -23,8 +23,9 @@ pub struct EpochRecord {
     pub roi_class: f64,
     /// Mean RoI box loss.
     pub roi_box: f64,
-    /// Validation mAP@0.5 (all-point) at its end.
-    pub val_map: f64,
+    /// Validation mAP@0.5 (all-point) at its end (`None`: not validated, see
+    /// `train.val_every`).
+    pub val_map: Option<f64>,
     /// Learning rate at its last step.
     pub lr: f64,
     /// Wall-clock seconds it took (training + validation).
@@ -104,13 +105,15 @@ fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, h: &[EpochRecord]) -> 
         .draw()
         .map_err(|e| e.to_string())?;
     m.draw_series(LineSeries::new(
-        h.iter().map(|r| (r.epoch as f64, r.val_map)),
+        h.iter()
+            .filter_map(|r| r.val_map.map(|m| (r.epoch as f64, m))),
         GREEN.stroke_width(2),
     ))
     .map_err(|e| e.to_string())?;
     m.draw_series(
         h.iter()
-            .map(|r| Circle::new((r.epoch as f64, r.val_map), 4, GREEN.filled())),
+            .filter_map(|r| r.val_map.map(|m| (r.epoch as f64, m)))
+            .map(|p| Circle::new(p, 4, GREEN.filled())),
     )
     .map_err(|e| e.to_string())?;
     root.present().map_err(|e| e.to_string())
@@ -123,7 +126,7 @@ pub fn write(dir: &Path, history: &[EpochRecord]) -> Result<(), ModelError> {
     );
     for r in history {
         csv.push_str(&format!(
-            "{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.3e},{:.1},{:.1},{:.1},{:.1},{:.1}\n",
+            "{},{},{:.6},{:.6},{:.6},{:.6},{:.6},{},{:.3e},{:.1},{:.1},{:.1},{:.1},{:.1}\n",
             r.epoch,
             r.step,
             r.loss,
@@ -131,7 +134,7 @@ pub fn write(dir: &Path, history: &[EpochRecord]) -> Result<(), ModelError> {
             r.rpn_box,
             r.roi_class,
             r.roi_box,
-            r.val_map,
+            r.val_map.map_or(String::new(), |m| format!("{m:.6}")),
             r.lr,
             r.seconds,
             r.data_s,

@@ -523,17 +523,24 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
                 );
             }
         }
+        let validate = (epoch + 1).is_multiple_of(tc.val_every) || epoch + 1 >= last_epoch;
         let tic = std::time::Instant::now();
-        let results = detect_frames(&model, &ds, &val_frames)?;
+        let val_map = if validate {
+            let results = detect_frames(&model, &ds, &val_frames)?;
+            Some(
+                evaluate(
+                    &results,
+                    config.model.num_classes,
+                    0.5,
+                    0.5,
+                    Interpolation::AllPoint,
+                )
+                .map,
+            )
+        } else {
+            None
+        };
         let validation_s = tic.elapsed().as_secs_f64();
-        let val_map = evaluate(
-            &results,
-            config.model.num_classes,
-            0.5,
-            0.5,
-            Interpolation::AllPoint,
-        )
-        .map;
         let n = n_steps.max(1) as f64;
         state.history.push(EpochRecord {
             epoch: epoch + 1,
@@ -552,7 +559,7 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
             validation_s,
         });
         state.epochs_done = epoch + 1;
-        if val_map > state.best_map {
+        if let Some(val_map) = val_map.filter(|&m| m > state.best_map) {
             state.best_map = val_map;
             state.best_epoch = epoch + 1;
             model.save(&paths.best)?;
@@ -560,10 +567,10 @@ pub fn train(opts: &TrainOptions) -> Result<TrainReport, ModelError> {
         save_checkpoint(&paths.ckpt, &model, &opt, &state)?;
         curves::write(&opts.out, &state.history)?;
         bar.println(format!(
-            "epoch {} done: loss {:.4}, val mAP@0.5 {:.4}; {:.0} s: data {:.0}, forward {:.0}, backward + step {:.0}, validation {:.0}",
+            "epoch {} done: loss {:.4}, val mAP@0.5 {}; {:.0} s: data {:.0}, forward {:.0}, backward + step {:.0}, validation {:.0}",
             epoch + 1,
             sums[4] / n,
-            val_map,
+            val_map.map_or("not validated".to_string(), |m| format!("{m:.4}")),
             te.elapsed().as_secs_f64(),
             spent[0],
             spent[1],

@@ -67,6 +67,48 @@ fn train_resume_and_eval_on_a_tiny_dataset() {
         assert!(out.join(f).exists(), "{f} missing");
     }
 
+    // the run stopped after epoch 1 and the last epochs validate whatever val_every says
+    let maps: Vec<bool> = state["history"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["val_map"].is_f64())
+        .collect();
+    assert_eq!(maps, [true, true, true]);
+    // uninterrupted, val_every = 2 skips epoch 1's validation: epochs 2 and 3 (the
+    // last) are validated, the best model is one of them, the CSV leaves the cell empty
+    let out3 = tmp.path().join("model3");
+    frugal(&[
+        "train",
+        "--data",
+        p(&data),
+        "--config",
+        p(&cfg),
+        "--out",
+        p(&out3),
+        "--epochs",
+        "3",
+        "--quiet",
+    ])
+    .unwrap();
+    let state3: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out3.join("checkpoint/state.json")).unwrap())
+            .unwrap();
+    let maps: Vec<bool> = state3["history"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["val_map"].is_f64())
+        .collect();
+    assert_eq!(maps, [false, true, true]);
+    assert!(
+        matches!(state3["best_epoch"].as_u64(), Some(2 | 3)),
+        "{state3}"
+    );
+    let csv = std::fs::read_to_string(out3.join("curves.csv")).unwrap();
+    let cells: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
+    assert_eq!(cells[7], "", "{csv}");
+
     let ev = tmp.path().join("eval");
     frugal(&[
         "eval",

@@ -224,6 +224,7 @@ batch_size = 3
 warmup_steps = 1
 train_frames = 6
 val_frames = 2
+val_every = 2
 threads = 1
 "#;
 
@@ -255,6 +256,9 @@ impl RunConfig {
         let mut detector = DetectorConfig::default();
         // both cores of the 2-core budget (the tests' tiny profile uses one)
         detector.train.threads = 2;
+        // validation after epochs 2, 4, 6 and 8: the best epoch is a late one, and each
+        // pass over the 300 validation frames costs about 7 s
+        detector.train.val_every = 2;
         let replay = ReplaySettings {
             per_combo: 0,
             threads: 1,
