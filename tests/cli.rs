@@ -21,6 +21,22 @@ pub(crate) fn tiny_dataset(dir: &Path) {
     .unwrap_or_else(|e| panic!("generating the tiny dataset: {e}"));
 }
 
+/// Train the detector of `cfg` on `data` into `out`, quietly, with `extra` arguments.
+pub(crate) fn train_tiny(data: &Path, cfg: &Path, out: &Path, extra: &[&str]) {
+    let mut args = vec![
+        "train",
+        "--data",
+        p(data),
+        "--config",
+        p(cfg),
+        "--out",
+        p(out),
+        "--quiet",
+    ];
+    args.extend_from_slice(extra);
+    frugal(&args).unwrap_or_else(|e| panic!("training into {}: {e}", out.display()));
+}
+
 /// A temporary path as an argument.
 pub(crate) fn p(path: &Path) -> &str {
     path.to_str().expect("temp paths are UTF-8")

@@ -1,5 +1,5 @@
 //! `frugal compress` and `frugal pareto` on a tiny generated dataset with a tiny model.
-use super::{frugal, json, p, tiny_dataset};
+use super::{frugal, json, p, tiny_dataset, train_tiny};
 use std::path::Path;
 
 const GRID: &str = r#"
@@ -51,17 +51,7 @@ fn compress_then_pareto_on_a_tiny_model() {
     let grid = tmp.path().join("grid.toml");
     std::fs::write(&grid, GRID).unwrap();
     tiny_dataset(&data);
-    frugal(&[
-        "train",
-        "--data",
-        p(&data),
-        "--config",
-        p(&cfg),
-        "--out",
-        p(&model),
-        "--quiet",
-    ])
-    .unwrap();
+    train_tiny(&data, &cfg, &model, &[]);
 
     // a grid with an unknown field is refused, naming the file and the field
     let bad = tmp.path().join("bad.toml");
@@ -166,21 +156,27 @@ fn compress_then_pareto_on_a_tiny_model() {
     );
     assert_eq!(rec("base-int8")["calibration"]["method"], "min_max");
 
-    frugal(&[
-        "pareto",
-        "--variants",
-        p(&vars),
-        "--data",
-        p(&data),
-        "--out",
-        p(&out),
-        "--frames",
-        "4",
-        "--warmup",
-        "1",
-        "--quiet",
-    ])
-    .unwrap();
+    // four validation frames, one warm-up; `timed` of them timed
+    let pareto = |out: &std::path::Path, timed: &str| {
+        frugal(&[
+            "pareto",
+            "--variants",
+            p(&vars),
+            "--data",
+            p(&data),
+            "--out",
+            p(out),
+            "--frames",
+            "4",
+            "--timed-frames",
+            timed,
+            "--warmup",
+            "1",
+            "--quiet",
+        ])
+        .unwrap()
+    };
+    pareto(&out, "0");
     let report = json(&out.join("pareto.json"));
     let vs = report["variants"].as_array().unwrap();
     assert_eq!(vs.len(), names.len());
@@ -232,23 +228,7 @@ fn compress_then_pareto_on_a_tiny_model() {
     // timing one frame and scoring the other three on every core changes the timings
     // only: every variant's accuracy and confidences are those of the all-timed pass
     let out1 = tmp.path().join("pareto-timed1");
-    frugal(&[
-        "pareto",
-        "--variants",
-        p(&vars),
-        "--data",
-        p(&data),
-        "--out",
-        p(&out1),
-        "--frames",
-        "4",
-        "--timed-frames",
-        "1",
-        "--warmup",
-        "1",
-        "--quiet",
-    ])
-    .unwrap();
+    pareto(&out1, "1");
     let r1 = json(&out1.join("pareto.json"));
     assert_eq!(
         (r1["frames"].as_u64(), r1["timed_frames"].as_u64()),

@@ -1,5 +1,15 @@
 //! `frugal train` and `frugal eval` on a tiny generated dataset with a tiny model.
-use super::{frugal, p, tiny_dataset};
+use super::{frugal, json, p, tiny_dataset, train_tiny};
+
+/// Per epoch of a training's `state.json`, whether it was validated.
+fn validated(state: &serde_json::Value) -> Vec<bool> {
+    state["history"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["val_map"].is_f64())
+        .collect()
+}
 
 #[test]
 fn train_resume_and_eval_on_a_tiny_dataset() {
@@ -11,21 +21,8 @@ fn train_resume_and_eval_on_a_tiny_dataset() {
     tiny_dataset(&data);
 
     // an interrupted run (one epoch), then --resume finishes it
-    frugal(&[
-        "train",
-        "--data",
-        p(&data),
-        "--config",
-        p(&cfg),
-        "--out",
-        p(&out),
-        "--stop-after",
-        "1",
-        "--quiet",
-    ])
-    .unwrap();
-    let state: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("checkpoint/state.json")).unwrap()).unwrap();
+    train_tiny(&data, &cfg, &out, &["--stop-after", "1"]);
+    let state = json(&out.join("checkpoint/state.json"));
     assert_eq!(state["epochs_done"], 1);
     frugal(&[
         "train",
@@ -68,39 +65,13 @@ fn train_resume_and_eval_on_a_tiny_dataset() {
     }
 
     // the run stopped after epoch 1 and the last epochs validate whatever val_every says
-    let maps: Vec<bool> = state["history"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| e["val_map"].is_f64())
-        .collect();
-    assert_eq!(maps, [true, true, true]);
+    assert_eq!(validated(&state), [true, true, true]);
     // uninterrupted, val_every = 2 skips epoch 1's validation: epochs 2 and 3 (the
     // last) are validated, the best model is one of them, the CSV leaves the cell empty
     let out3 = tmp.path().join("model3");
-    frugal(&[
-        "train",
-        "--data",
-        p(&data),
-        "--config",
-        p(&cfg),
-        "--out",
-        p(&out3),
-        "--epochs",
-        "3",
-        "--quiet",
-    ])
-    .unwrap();
-    let state3: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out3.join("checkpoint/state.json")).unwrap())
-            .unwrap();
-    let maps: Vec<bool> = state3["history"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| e["val_map"].is_f64())
-        .collect();
-    assert_eq!(maps, [false, true, true]);
+    train_tiny(&data, &cfg, &out3, &["--epochs", "3"]);
+    let state3 = json(&out3.join("checkpoint/state.json"));
+    assert_eq!(validated(&state3), [false, true, true]);
     assert!(
         matches!(state3["best_epoch"].as_u64(), Some(2 | 3)),
         "{state3}"
