@@ -156,7 +156,7 @@ pub fn largest_box(boxes: impl IntoIterator<Item = BBox>) -> Option<BBox> {
 /// The content state of what the last frames showed: the size bucket of the largest
 /// box, the motion bucket of its centre (distance from the centre of the largest box
 /// of the last frame that showed one, divided by the frames elapsed, at least one),
-/// and the count bucket. The [`Scheduler`] keeps one; so can any other scheduler that
+/// and the count bucket. The [`Scheduler`](crate::schedule::Scheduler) keeps one; so can any other scheduler that
 /// needs the same state (the workbench's ApproxDet-style baseline does).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ContentTracker {

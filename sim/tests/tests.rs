@@ -1,6 +1,9 @@
 //! Integration tests of the maze simulator: the renderer against its own ground truth,
 //! distance from box height, closed-loop flights through every shipped maze, and
 //! failures that must end cleanly (collision, unreachable goal, bad files).
+//!
+//! About 1,200 lines because it holds every integration test of the crate; the tests are
+//! independent of one another and share the helpers of this file.
 use frugal_data::Sign;
 use frugal_runtime::BBox;
 use frugal_sim::flight::Mode;

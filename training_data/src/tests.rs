@@ -1,5 +1,7 @@
 //! Whole-crate tests on the tiny profile: determinism, splits, reuse, import → export
 //! → import round trips and the errors for malformed input.
+//!
+//! About 1,100 lines of independent tests sharing this file's tiny-profile fixtures.
 use crate::*;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -9,6 +9,10 @@
 //! O(1) and cannot fail for in-range indices. The writer lives in `bundle::write`
 //! (feature `std`).
 //!
+//! Over 1,000 lines on purpose: the format's specification (the table below) and the
+//! one zero-copy reader that enforces it, section by section, so that each check sits
+//! in the same file as the table row it enforces.
+//!
 //! # Format, version 4 (this table is the specification)
 //!
 //! Version 4 added the optional schedules section (kind 6). The reader also reads

@@ -1,3 +1,7 @@
+//! The bundle's writer and zero-copy reader: round trips, old versions read and never
+//! misread, and every flipped byte, truncation, extension and structural error refused.
+//! About 900 lines of independent cases that share the sample bundles at the top.
+
 use frugal_runtime::bundle::write::{
     BudgetSpec, BundleWriter, FamilySpec, ScheduleSpec, VariantSpec, WriteError,
 };

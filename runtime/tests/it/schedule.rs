@@ -1,5 +1,7 @@
 //! The budget scheduler: content buckets, the state layout, the per-frame decisions on
 //! a hand-made bundle, and the pilot flying it over a synthetic clip.
+//!
+//! About 600 lines of independent tests sharing one hand-made bundle.
 
 use frugal_runtime::bundle::write::{
     BudgetSpec, BundleWriter, FamilySpec, ScheduleSpec, VariantSpec,

@@ -55,6 +55,10 @@
 //! Logging at info level for `showinfo` means ffmpeg also prints its banner and
 //! stream mapping; `-loglevel level+info` tags each line with its level, and only
 //! `[error]`, `[fatal]` and `[panic]` lines count as problems.
+//!
+//! Over 700 lines: the reader, the ffmpeg command it builds and the clock that turns the
+//! pipe's `showinfo` lines into each frame's timestamp are one mechanism. Each frame read
+//! is checked against the line ffmpeg printed for it, so they stay in one file.
 use super::probe::{Probed, Ratio, file_url, probe_with, spawn_error};
 use super::{DecodedFrame, MediaInfo, Sampling, TOOLS, Tools};
 use crate::DataError;
