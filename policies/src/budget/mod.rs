@@ -15,7 +15,9 @@
 //! - **Objective** (a constrained semi-MDP, solved by Lagrangian relaxation): maximise
 //!   the discounted sum of per-frame F1 (`2tp / (2tp + fp + fn)` of what each frame
 //!   shows, 1 on a frame with nothing to find and nothing shown) subject to an
-//!   expected device compute per frame ≤ the budget. A segment of `L` frames costing
+//!   expected device compute per frame ≤ the budget. With [`BudgetReward::Streaming`]
+//!   each frame's F1 is taken against the truth of the frame its output is first shown
+//!   on under the clock instead ([`shown_on`]). A segment of `L` frames costing
 //!   `C` device-ms earns `Σ F1 − λ (C / budget − L) − κ [variant changed]`; `λ ≥ 0`
 //!   is the smallest (bisection) whose policy, rolled out on the training videos,
 //!   spends at most the budget per frame; `κ` ([`BudgetConfig::switch_cost`]) pays
@@ -94,6 +96,34 @@ pub struct BudgetConfig {
     pub clock_runs: u32,
     /// Relative jitter of the compute times between clock runs (0 = none).
     pub jitter: f64,
+    /// What a segment earns per frame ([`BudgetReward`]).
+    pub reward: BudgetReward,
+}
+
+/// What a segment of the semi-MDP earns per frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum BudgetReward {
+    /// The F1 of what each frame shows against that frame's truth (offline).
+    #[default]
+    Shown,
+    /// The F1 of each output against the truth of the frame on which it is first shown
+    /// under the clock ([`shown_on`]), as streaming AP pairs them. An accurate variant
+    /// that finishes two frames late is scored two frames on.
+    Streaming,
+}
+
+/// The frame on which the output of frame `f`, ready `device_ms` after the frame
+/// arrived, is first shown, frames arriving at `arrivals_ms`: the first frame after `f`
+/// that arrives when the output is ready (as [`crate::stream::latest_outputs`] pairs
+/// them; an output is never shown on its own frame, which arrived before it), or the
+/// last frame when none does.
+pub fn shown_on(arrivals_ms: &[f64], f: usize, device_ms: f64) -> usize {
+    let ready = arrivals_ms.get(f).copied().unwrap_or(0.0) + device_ms.max(0.0);
+    let last = arrivals_ms.len().saturating_sub(1);
+    (f + 1..arrivals_ms.len())
+        .find(|&g| arrivals_ms[g] >= ready)
+        .unwrap_or(last)
 }
 
 impl Default for BudgetConfig {
@@ -117,6 +147,7 @@ impl Default for BudgetConfig {
             seed: 7,
             clock_runs: 8,
             jitter: 0.05,
+            reward: BudgetReward::Shown,
         }
     }
 }

@@ -8,7 +8,9 @@ use crate::scoring::ground_truth;
 use frugal_runtime::BBox;
 use frugal_runtime::schedule::{Content, ContentEdges};
 
-use super::{BudgetConfig, Perceiver, TrackState, VideoCache, largest, shown_f1};
+use super::{
+    BudgetConfig, BudgetReward, Perceiver, TrackState, VideoCache, largest, shown_f1, shown_on,
+};
 
 /// One replayed segment: `v` detects frame `t`, the tracker carries its boxes.
 #[derive(Clone, Debug, Default)]
@@ -34,12 +36,18 @@ pub fn video_segments(
     let longest = *cfg.periods.last().unwrap_or(&1) as usize;
     let n = video.frames.len();
     let mut out = Vec::with_capacity(n);
+    // the truth an output of frame `f` costing `ms` (measuring machine) is scored on
+    let arrivals = video.arrivals_ms(cfg.fps);
+    let truth = |f: usize, ms: f64| match cfg.reward {
+        BudgetReward::Shown => ground_truth(video, f),
+        BudgetReward::Streaming => ground_truth(video, shown_on(&arrivals, f, ms * cfg.slowdown)),
+    };
     for t in 0..n {
         let mut row = Vec::with_capacity(log.variants.len());
         for v in 0..log.variants.len() {
             let mut p = Perceiver::new(log, video, frames, &cache, cost, cfg.max_tracks);
             let (shown, score, ms) = p.detect(t, v)?;
-            let tr = ground_truth(video, t);
+            let tr = truth(t, ms);
             let mut seg = Segment {
                 score,
                 frames: vec![(shown_f1(&shown, &tr, iou), shown.len(), largest(&shown), ms)],
@@ -53,7 +61,7 @@ pub fn video_segments(
                     break;
                 }
                 let shown = p.tracked();
-                let tr = ground_truth(video, t + k);
+                let tr = truth(t + k, ms);
                 seg.frames
                     .push((shown_f1(&shown, &tr, iou), shown.len(), largest(&shown), ms));
             }

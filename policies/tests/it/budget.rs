@@ -365,3 +365,51 @@ fn strategies_that_behave_alike_under_two_budgets_stream_alike() {
         );
     }
 }
+
+#[test]
+fn an_output_is_first_shown_on_the_first_frame_arriving_after_it_is_ready() {
+    use frugal_policies::budget::shown_on;
+    let arr = frugal_policies::stream::arrivals(10, 30.0); // 0, 33.3, 66.7, ... ms
+    // ready before the next frame: shown on it; never on its own frame
+    assert_eq!(shown_on(&arr, 2, 0.0), 3);
+    assert_eq!(shown_on(&arr, 2, 10.0), 3);
+    // 40 ms: misses frame 3 (33.3 ms later), shown on frame 4
+    assert_eq!(shown_on(&arr, 2, 40.0), 4);
+    // exactly one period: ready as frame 3 arrives (finish <= arrival counts)
+    assert_eq!(shown_on(&arr, 2, arr[3] - arr[2]), 3);
+    // past the video's end: its last frame
+    assert_eq!(shown_on(&arr, 2, 10_000.0), 9);
+    assert_eq!(shown_on(&arr, 9, 5.0), 9);
+    // uneven arrivals (an imported video's timestamps)
+    let uneven = [0.0, 10.0, 100.0, 110.0];
+    assert_eq!(shown_on(&uneven, 0, 50.0), 2);
+}
+
+/// The streaming reward scores a late variant's output on the frame it is first shown
+/// on: on the fixture's moving sign, a detection that lands far too late earns less
+/// than the same detection scored on its own frame.
+#[test]
+fn the_streaming_reward_charges_a_late_detection_for_the_frames_it_missed() {
+    use frugal_policies::budget::{BudgetReward, video_segments};
+    let (log, frames) = log3();
+    let video = log.split(Split::Test).next().unwrap();
+    // the fixture's most expensive variant (10 ms) on a device 60× slower: 600 ms, 18
+    // frames late at 30 fps, by when the sign has moved most of its width
+    let slow = (0..log.variants.len())
+        .max_by(|&a, &b| log.variants[a].latency_ms.total_cmp(&log.variants[b].latency_ms))
+        .unwrap();
+    let first_f1 = |reward: BudgetReward| {
+        let cfg = BudgetConfig {
+            slowdown: 60.0,
+            reward,
+            ..config()
+        };
+        let segs = video_segments(&log, video, &frames, COST, &cfg, 0.5).unwrap();
+        let f1: Vec<f64> = segs.iter().map(|row| row[slow].frames[0].0).collect();
+        f1.iter().sum::<f64>() / f1.len() as f64
+    };
+    let shown = first_f1(BudgetReward::Shown);
+    let streaming = first_f1(BudgetReward::Streaming);
+    assert!(shown > 0.8, "the expensive variant finds the sign: {shown}");
+    assert!(streaming < shown - 0.2, "late: {streaming} vs on time: {shown}");
+}
