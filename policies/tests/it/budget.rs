@@ -396,7 +396,11 @@ fn the_streaming_reward_charges_a_late_detection_for_the_frames_it_missed() {
     // the fixture's most expensive variant (10 ms) on a device 60× slower: 600 ms, 18
     // frames late at 30 fps, by when the sign has moved most of its width
     let slow = (0..log.variants.len())
-        .max_by(|&a, &b| log.variants[a].latency_ms.total_cmp(&log.variants[b].latency_ms))
+        .max_by(|&a, &b| {
+            log.variants[a]
+                .latency_ms
+                .total_cmp(&log.variants[b].latency_ms)
+        })
         .unwrap();
     let first_f1 = |reward: BudgetReward| {
         let cfg = BudgetConfig {
@@ -411,5 +415,8 @@ fn the_streaming_reward_charges_a_late_detection_for_the_frames_it_missed() {
     let shown = first_f1(BudgetReward::Shown);
     let streaming = first_f1(BudgetReward::Streaming);
     assert!(shown > 0.8, "the expensive variant finds the sign: {shown}");
-    assert!(streaming < shown - 0.2, "late: {streaming} vs on time: {shown}");
+    assert!(
+        streaming < shown - 0.2,
+        "late: {streaming} vs on time: {shown}"
+    );
 }

@@ -25,7 +25,6 @@
 //! This file holds what every import shares (splits, checks, writing); the three
 //! still-image readers are in `stills`, the video annotation formats in
 //! [`video`](mod@video).
-use crate::coco::CocoFile;
 use crate::dataset::PartialDir;
 use crate::generate::encode_png;
 use crate::{

@@ -1,6 +1,12 @@
 //! The still-image readers: COCO JSON, Pascal VOC XML and GTSDB-style CSV, each into
 //! the shared source records that [`super::import`] checks and writes.
-use super::*;
+use super::classes::ClassTable;
+use super::{ImportOptions, SourceBox, SourceImage};
+use crate::coco::CocoFile;
+use crate::{BBox, ClassId, Clutter, DataError, Light, Split};
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 
 fn parse_split(s: &str) -> Option<Split> {
     Split::ALL.into_iter().find(|x| x.name() == s)
