@@ -28,12 +28,13 @@ pub fn frame_truth(f: &FrameRecord) -> Vec<Truth> {
         .collect()
 }
 
-/// Up to `n` frames spread evenly over `frames` (all when `n == 0`).
-pub fn spread(frames: Vec<&FrameRecord>, n: usize) -> Vec<&FrameRecord> {
-    if n == 0 || frames.len() <= n {
-        return frames;
+/// Up to `n` items (frames, or their indices) spread evenly over `items` (all when
+/// `n == 0`).
+pub fn spread<T: Copy>(items: Vec<T>, n: usize) -> Vec<T> {
+    if n == 0 || items.len() <= n {
+        return items;
     }
-    (0..n).map(|i| frames[i * frames.len() / n]).collect()
+    (0..n).map(|i| items[i * items.len() / n]).collect()
 }
 
 /// Run `model` on frames and pair the detections with the ground truth.

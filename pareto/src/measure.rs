@@ -250,15 +250,6 @@ fn mark_fronts(
     (f, plain)
 }
 
-/// The indices of the frames to time: `n` when `count` is 0 or at least `n`, else
-/// `count` of them spread evenly.
-fn timed_frames(n: usize, count: usize) -> Vec<usize> {
-    if count == 0 || count >= n {
-        return (0..n).collect();
-    }
-    (0..count).map(|i| i * n / count).collect()
-}
-
 /// Per variant, what it found on a frame and (timed frames) how long it took, ms.
 type FrameOutcome = Vec<(Vec<Detection>, Option<f64>)>;
 
@@ -330,8 +321,9 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
     };
     let mut dets = open_all()?;
     let k = variants.len();
-    let timed = timed_frames(n, opts.timed_frames);
-    let untimed: Vec<usize> = (0..n).filter(|i| !timed.contains(i)).collect();
+    // the frames to time, spread evenly (ascending), and the others
+    let timed = spread((0..n).collect(), opts.timed_frames);
+    let untimed: Vec<usize> = (0..n).filter(|i| timed.binary_search(i).is_err()).collect();
     let workers = opts.workers.clamp(1, untimed.len().max(1));
     let t0 = std::time::Instant::now();
     let done = std::sync::atomic::AtomicUsize::new(0);

@@ -112,6 +112,12 @@ impl<'a> Perceiver<'a> {
         }
     }
 
+    /// The video's (width, height) and the pyramid's levels.
+    fn dims(&self) -> (usize, usize, usize) {
+        let v = self.video;
+        (v.width as usize, v.height as usize, self.params.lk.levels)
+    }
+
     /// Puts frame `f`'s pyramid into buffer `which` (0 previous, 1 current): from the
     /// cache, or built from the frame (and cached).
     fn fill(&mut self, which: usize, f: usize) -> Result<()> {
@@ -123,7 +129,7 @@ impl<'a> Perceiver<'a> {
             self.held_in[which] = Some(f);
             return Ok(());
         }
-        let (w, h) = (self.video.width as usize, self.video.height as usize);
+        let (w, h, levels) = self.dims();
         let img = self
             .frames
             .load(self.video.id, self.video.frames[f].index)?;
@@ -135,7 +141,7 @@ impl<'a> Perceiver<'a> {
         }
         let video = self.video;
         let gray = rgb_to_gray(&img.view(), &mut self.gray).map_err(at(video, f))?;
-        Pyramid::new(&mut self.bufs[which], w, h, self.params.lk.levels)
+        Pyramid::new(&mut self.bufs[which], w, h, levels)
             .and_then(|mut p| p.build(&gray))
             .map_err(at(video, f))?;
         self.held_in[which] = Some(f);
@@ -176,11 +182,7 @@ impl<'a> Perceiver<'a> {
                 }
                 None => {
                     self.ready(p, f)?;
-                    let (w, h, levels) = (
-                        self.video.width as usize,
-                        self.video.height as usize,
-                        self.params.lk.levels,
-                    );
+                    let (w, h, levels) = self.dims();
                     let [b0, b1] = &mut self.bufs;
                     let prev = Pyramid::new(b0, w, h, levels).map_err(at(self.video, f))?;
                     let cur = Pyramid::new(b1, w, h, levels).map_err(at(self.video, f))?;
@@ -215,7 +217,7 @@ impl<'a> Perceiver<'a> {
                 }
             }
         }
-        self.held.retain(|t| t.tracker.is_active());
+        // (the held boxes are those still tracked: retained when the step was taken)
         Ok((
             if self.held.is_empty() {
                 TrackState::Lost
@@ -254,11 +256,7 @@ impl<'a> Perceiver<'a> {
             Some(held) => held,
             None => {
                 self.fill(1, f)?;
-                let (w, h, levels) = (
-                    self.video.width as usize,
-                    self.video.height as usize,
-                    self.params.lk.levels,
-                );
+                let (w, h, levels) = self.dims();
                 let cur =
                     Pyramid::new(&mut self.bufs[1], w, h, levels).map_err(at(self.video, f))?;
                 let mut held = Vec::new();

@@ -128,6 +128,16 @@ impl BudgetPolicies {
     }
 }
 
+/// For every (budget, strategy) pair, the index of the first pair that behaves the
+/// same ([`BudgetPolicies::behaviour`]; its own index when none before it does): the
+/// pairs whose streams, and scores, are those of an earlier pair.
+pub fn first_alike(pol: &BudgetPolicies, pairs: &[(usize, BudgetStrategy)]) -> Vec<usize> {
+    let behaviour: Vec<Behaviour> = pairs.iter().map(|&(k, s)| pol.behaviour(k, s)).collect();
+    (0..pairs.len())
+        .map(|i| (0..i).find(|&j| behaviour[j] == behaviour[i]).unwrap_or(i))
+        .collect()
+}
+
 /// Who decides, frame by frame.
 enum Brain<'a> {
     /// The runtime's scheduler over a bundle with the budget tables.
@@ -419,7 +429,7 @@ pub fn stream_all(
     let combos: Vec<(usize, BudgetStrategy)> = (0..pol.config.budgets_ms.len())
         .flat_map(|k| BudgetStrategy::ALL.map(|s| (k, s)))
         .collect();
-    let behaviour: Vec<Behaviour> = combos.iter().map(|&(k, s)| pol.behaviour(k, s)).collect();
+    let alike = first_alike(pol, &combos);
     // per video, per (budget, strategy), its clock runs
     let per_video: Vec<Vec<Vec<BudgetRun>>> = videos
         .par_iter()
@@ -431,10 +441,9 @@ pub fn stream_all(
                 // a strategy that behaves the same under an earlier budget (the paper's
                 // MDP knows none; the same static variant; the same actions to draw
                 // from) streams the same: its runs stand for this budget too
-                let first = (0..i).find(|&j| behaviour[j] == behaviour[i]);
-                let runs = match first {
-                    Some(i) => out[i].clone(),
-                    None => (0..pol.config.clock_runs)
+                let runs = match alike[i] {
+                    j if j < i => out[j].clone(),
+                    _ => (0..pol.config.clock_runs)
                         .map(|c| {
                             stream_strategy(
                                 log, v, &cached, cost, pol, k, bundle, s, iou, c, &cache,

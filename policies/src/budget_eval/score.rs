@@ -89,15 +89,8 @@ pub fn budget_scores(
 ) -> Vec<BudgetScore> {
     let groups = scenario_groups(videos);
     // runs of equal behaviour are equal (`stream_all`): each is scored once
-    let behaviour: Vec<(usize, super::Behaviour)> = runs
-        .iter()
-        .map(|(k, s, _)| (*k, pol.behaviour(*k, *s)))
-        .collect();
-    let first_alike = |i: usize| {
-        (0..i)
-            .find(|&j| behaviour[j].1 == behaviour[i].1)
-            .unwrap_or(i)
-    };
+    let pairs: Vec<(usize, BudgetStrategy)> = runs.iter().map(|(k, s, _)| (*k, *s)).collect();
+    let alike = super::first_alike(pol, &pairs);
     let mut scored: std::collections::HashMap<(usize, &str), Scored> =
         std::collections::HashMap::new();
     let mut out = Vec::new();
@@ -114,7 +107,7 @@ pub fn budget_scores(
                 .filter(|(_, (kk, _, _))| *kk == k)
                 .map(|(i, (_, s, rs))| {
                     let (sap50, sap, f1, detections, timing) = scored
-                        .entry((first_alike(i), name.as_str()))
+                        .entry((alike[i], name.as_str()))
                         .or_insert_with(|| {
                             let sel: Vec<(&VideoLog, &BudgetRun)> = sel_videos
                                 .iter()
