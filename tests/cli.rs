@@ -59,6 +59,8 @@ mod features;
 mod fly;
 #[path = "cli/pareto.rs"]
 mod pareto;
+#[path = "cli/pilot.rs"]
+mod pilot;
 #[path = "cli/policy.rs"]
 mod policy;
 #[path = "cli/real.rs"]

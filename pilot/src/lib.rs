@@ -234,18 +234,19 @@ impl Perception {
         }
     }
 
-    /// The reference variant's reading of frame number `frame`.
+    /// The reference variant's reading of frame number `frame`; `None` when a
+    /// replay says there was none.
     fn confirm(
         &mut self,
         image: FrameRef<'_>,
         frame: u64,
-    ) -> Result<frugal_nav::Percept, frugal_nav::PerceptionError> {
+    ) -> Result<Option<frugal_nav::Percept>, frugal_nav::PerceptionError> {
         match self {
-            Perception::Bundle(p) => p.confirm(image),
-            Perception::Replay(r) => Ok(frugal_nav::Percept {
-                detections: r.confirm(frame),
+            Perception::Bundle(p) => p.confirm(image).map(Some),
+            Perception::Replay(r) => Ok(r.confirm(frame).map(|detections| frugal_nav::Percept {
+                detections,
                 ..frugal_nav::Percept::default()
-            }),
+            })),
         }
     }
 
@@ -496,7 +497,9 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
         let step = navigator.step(
             &nav_input,
             || {
-                let check = perception.confirm(image, frame.index)?;
+                let Some(check) = perception.confirm(image, frame.index)? else {
+                    return Ok(None);
+                };
                 compute_ms += check.compute_ms;
                 confirmed.extend(reference);
                 Ok::<_, frugal_nav::PerceptionError>(Some(check.detections))

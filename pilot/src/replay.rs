@@ -15,7 +15,11 @@
 //! `[x1, y1, x2, y2]` in pixels of the configured camera size); `decision`
 //! `"track"` marks them as carried by a tracker (default `"detect"`); `confirm`, when
 //! present, is what the reference variant reads when the navigator asks for a
-//! confirmation on that frame (default: the frame's own boxes).
+//! confirmation on that frame (default: the frame's own boxes), `null` when the
+//! perception has no reference detector to ask (the navigator then acts on its
+//! sighting unconfirmed, as the simulator's ground-truth perception makes it). A
+//! flight recorded with `frugal fly --record` writes its perception in this format
+//! (`logs/percepts_<video>.jsonl`).
 use frugal_nav::Percept;
 use frugal_runtime::{BBox, Detection};
 use std::collections::HashMap;
@@ -35,7 +39,8 @@ pub struct ReplayError {
 struct ReplayFrame {
     detections: Vec<Detection>,
     tracked: bool,
-    confirm: Option<Vec<Detection>>,
+    /// Absent: the frame's own boxes; `Some(None)`: no reference reading.
+    confirm: Option<Option<Vec<Detection>>>,
 }
 
 /// The detections of a file, by frame number.
@@ -118,7 +123,11 @@ impl Replay {
                     )));
                 }
             };
-            let confirm = value.get("confirm").map(boxes).transpose().map_err(at)?;
+            let confirm = match value.get("confirm") {
+                None => None,
+                Some(serde_json::Value::Null) => Some(None),
+                Some(b) => Some(Some(boxes(b).map_err(at)?)),
+            };
             let replay = ReplayFrame {
                 detections,
                 tracked,
@@ -141,12 +150,16 @@ impl Replay {
         }
     }
 
-    /// What the reference variant reads on frame number `frame`.
-    pub fn confirm(&self, frame: u64) -> Vec<Detection> {
-        self.frames
-            .get(&frame)
-            .map(|f| f.confirm.clone().unwrap_or_else(|| f.detections.clone()))
-            .unwrap_or_default()
+    /// What the reference variant reads on frame number `frame`; `None` when the
+    /// file says there is no reference reading (`"confirm": null`).
+    pub fn confirm(&self, frame: u64) -> Option<Vec<Detection>> {
+        match self.frames.get(&frame) {
+            None => Some(Vec::new()),
+            Some(f) => match &f.confirm {
+                None => Some(f.detections.clone()),
+                Some(read) => read.clone(),
+            },
+        }
     }
 }
 
@@ -162,6 +175,7 @@ mod tests {
             &path,
             "{\"frame\":3,\"decision\":\"track\",\"boxes\":[{\"class\":1,\"score\":0.5,\"box\":[1,2,3,4]}]}\n\
              {\"frame\":4,\"boxes\":[],\"confirm\":[{\"class\":2,\"score\":0.9,\"box\":[0,0,8,8]}]}\n\
+             {\"frame\":6,\"boxes\":[],\"confirm\":null}\n\
              {\"summary\":{}}\n",
         )
         .unwrap();
@@ -170,9 +184,11 @@ mod tests {
         assert!(p.tracked);
         assert_eq!(p.detections.len(), 1);
         assert_eq!(p.detections[0].class, 1);
-        assert_eq!(r.confirm(3), p.detections);
+        assert_eq!(r.confirm(3), Some(p.detections));
         assert!(r.percept(4).detections.is_empty());
-        assert_eq!(r.confirm(4)[0].class, 2);
+        assert_eq!(r.confirm(4).unwrap()[0].class, 2);
+        assert_eq!(r.confirm(6), None);
+        assert_eq!(r.confirm(5), Some(Vec::new()));
         assert_eq!(r.percept(5), Percept::default());
         std::fs::write(
             &path,

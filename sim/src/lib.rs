@@ -105,5 +105,5 @@ pub use perception::{
     DetectorPerception, DeviceProfile, FrameInput, GroundTruthPerception, Percept, Perception,
     PerceptionError,
 };
-pub use record::{FootageRecorder, flight_log_file};
+pub use record::{FootageRecorder, flight_log_file, percepts_file};
 pub use render::{CameraSpec, FrameTruth, PedestrianTruth, Pose, Renderer, SignTruth};

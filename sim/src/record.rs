@@ -12,7 +12,11 @@
 //! Beside the frames, each flight's [`FlightLog`] (`logs/flight_<video>.csv`: per kept
 //! frame, the decision time, distance flown, heading, pedestrian proximity and the
 //! command issued), with which the drone-side program replays the footage on the
-//! navigator's own inputs (`frugal-pilot --odometry`).
+//! navigator's own inputs (`frugal-pilot --odometry`), and what the flight's
+//! perception returned on each kept frame (`logs/percepts_<video>.jsonl`, in the
+//! format of `frugal-pilot --detections`: the boxes, detected or tracked, and what the
+//! reference detector read when the navigator asked it to confirm), with which the
+//! pilot replays the flight's perception, or is checked against it.
 use crate::flight::FrameView;
 use crate::maze::{Lighting, Maze};
 use crate::perception::GroundTruthPerception;
@@ -22,6 +26,7 @@ use frugal_data::{
     Clutter, DataError, Dataset, FrameRecord, Light, Object, Source, Split, VideoMeta, classes,
 };
 use frugal_nav::{FlightLog, LogRow};
+use frugal_runtime::Detection;
 use std::path::{Path, PathBuf};
 
 /// Writes the frames of one or more flights into a dataset folder, swapped into place
@@ -34,11 +39,46 @@ pub struct FootageRecorder {
     videos: Vec<VideoMeta>,
     frames: Vec<FrameRecord>,
     logs: Vec<FlightLog>,
+    percepts: Vec<Vec<serde_json::Value>>,
 }
 
 /// The flight log of video `id` inside a recording folder.
 pub fn flight_log_file(id: u32) -> String {
     format!("logs/flight_{id}.csv")
+}
+
+/// The perception record of video `id` inside a recording folder (JSON lines, the
+/// format of `frugal-pilot --detections`).
+pub fn percepts_file(id: u32) -> String {
+    format!("logs/percepts_{id}.jsonl")
+}
+
+/// Detections as the pilot's JSON boxes: class, score, `[x1, y1, x2, y2]`.
+fn boxes_json(detections: &[Detection]) -> serde_json::Value {
+    detections
+        .iter()
+        .map(|d| {
+            serde_json::json!({
+                "class": d.class,
+                "score": d.score,
+                "box": [d.bbox.x1, d.bbox.y1, d.bbox.x2, d.bbox.y2],
+            })
+        })
+        .collect()
+}
+
+/// One frame's perception as a `frugal-pilot --detections` line: `confirm` is present
+/// when the navigator asked for a reading, `null` when perception had none to give.
+fn percept_line(frame: u32, view: &FrameView<'_>) -> serde_json::Value {
+    let mut line = serde_json::json!({
+        "frame": frame,
+        "decision": if view.tracked { "track" } else { "detect" },
+        "boxes": boxes_json(view.detections),
+    });
+    if let Some(read) = view.confirm {
+        line["confirm"] = read.map_or(serde_json::Value::Null, boxes_json);
+    }
+    line
 }
 
 impl FootageRecorder {
@@ -52,6 +92,7 @@ impl FootageRecorder {
             videos: Vec::new(),
             frames: Vec::new(),
             logs: Vec::new(),
+            percepts: Vec::new(),
         })
     }
 
@@ -72,6 +113,7 @@ impl FootageRecorder {
             fps: None,
         });
         self.logs.push(FlightLog::default());
+        self.percepts.push(Vec::new());
     }
 
     /// Keep `view` if its index is a multiple of `every`: its PNG and its annotations.
@@ -126,6 +168,9 @@ impl FootageRecorder {
                 command: view.command,
             });
         }
+        if let Some(lines) = self.percepts.last_mut() {
+            lines.push(percept_line(video.frames, view));
+        }
         video.frames += 1;
         Ok(())
     }
@@ -146,10 +191,13 @@ impl FootageRecorder {
         dataset.write_metadata(self.partial.path(), source)?;
         let dir = self.partial.path().join("logs");
         std::fs::create_dir_all(&dir).map_err(|e| DataError::io(&dir, e))?;
-        for (video, log) in dataset.videos.iter().zip(&self.logs) {
+        for ((video, log), percepts) in dataset.videos.iter().zip(&self.logs).zip(&self.percepts) {
             let path = self.partial.path().join(flight_log_file(video.id));
             log.write(&path)
                 .map_err(|e| DataError::invalid(&path, "flight log", e.message))?;
+            let path = self.partial.path().join(percepts_file(video.id));
+            let text: String = percepts.iter().map(|l| format!("{l}\n")).collect();
+            std::fs::write(&path, text).map_err(|e| DataError::io(&path, e))?;
         }
         self.partial.commit()?;
         dataset.root = self.out;

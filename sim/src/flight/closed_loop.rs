@@ -10,7 +10,7 @@ use crate::perception::{FrameInput, Perception};
 use crate::render::{Renderer, Walker};
 use frugal_nav::heading::{reached, turn_target};
 use frugal_nav::{NavCommand, NavInput, Navigator, Optics};
-use frugal_runtime::FrameRef;
+use frugal_runtime::{Detection, FrameRef};
 use std::time::Instant;
 
 /// Fly `maze` once with `perception` and `seed`. `observer` sees every processed frame
@@ -204,15 +204,21 @@ pub fn fly(
             detections: &percept.detections,
             tracked: percept.tracked,
         };
+        // what the reference detector read, if the navigator asked (for the observer)
+        let mut confirm_read: Option<Option<Vec<Detection>>> = None;
         let step = navigator.step(
             &input_nav,
             || match perception.confirm(&input) {
                 Ok(Some(check)) => {
                     pending_ms += check.compute_ms.max(0.0);
                     compute_total += check.compute_ms.max(0.0);
+                    confirm_read = Some(Some(check.detections.clone()));
                     Ok(Some(check.detections))
                 }
-                Ok(None) => Ok(None),
+                Ok(None) => {
+                    confirm_read = Some(None);
+                    Ok(None)
+                }
                 Err(source) => Err(FlightError::Perception {
                     name: name.clone(),
                     frame: frames - 1,
@@ -245,6 +251,8 @@ pub fn fly(
                 image,
                 truth: &truth,
                 detections: &percept.detections,
+                tracked: percept.tracked,
+                confirm: confirm_read.as_ref().map(Option::as_deref),
                 mode,
                 decision_s: t,
                 odometer: odo,

@@ -158,6 +158,12 @@ pub struct FrameView<'a> {
     pub truth: &'a FrameTruth,
     /// What perception returned.
     pub detections: &'a [Detection],
+    /// Those detections were carried by a tracker, not detected on this frame.
+    pub tracked: bool,
+    /// The navigator asked perception to read this frame again with its reference
+    /// detector: `Some(None)` when perception has none (ground truth), `Some(Some(d))`
+    /// with what it read; `None` when it did not ask.
+    pub confirm: Option<Option<&'a [Detection]>>,
     /// The navigator's mode after deciding on this frame.
     pub mode: Mode,
     /// Time of the decision on this frame, s.

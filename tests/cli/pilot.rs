@@ -1,0 +1,203 @@
+//! `frugal-pilot` on the simulator's own footage (`frugal fly --record`, every frame):
+//! on the flight's odometry it issues exactly the simulator's commands on exactly the
+//! same frames, first with the flight's perception replayed (ground truth, which turns
+//! and lands), then through a real bundle whose detector was trained here, where every
+//! frame's decision and boxes must equal what the simulator's perception returned.
+use super::{frugal, p};
+use clap::Parser;
+use frugal_nav::{FlightLog, NavCommand};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+
+fn maze(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../sim/mazes")
+        .join(name)
+}
+
+/// Fly the easy maze once at 160×90 on the host profile, recording every frame into
+/// `rec`, with `perception` arguments.
+fn record(tmp: &Path, rec: &Path, perception: &[&str]) {
+    let (easy, out) = (maze("easy.maze"), tmp.join("fly"));
+    let mut args = vec![
+        "fly",
+        "--maze",
+        p(&easy),
+        "--seeds",
+        "1",
+        "--width",
+        "160",
+        "--height",
+        "90",
+        "--device",
+        "host",
+        "--record",
+        p(rec),
+        "--record-every",
+        "1",
+        "--out",
+        p(&out),
+        "--quiet",
+    ];
+    args.extend_from_slice(perception);
+    frugal(&args).expect("fly --record");
+}
+
+/// Run the pilot over the recording's frames, every frame, on its flight log, with a
+/// 160×90 camera and `perception` arguments; its JSON lines go to `json`.
+fn pilot(tmp: &Path, rec: &Path, json: &Path, perception: &[&str]) -> frugal_pilot::Summary {
+    let config = tmp.join("pilot.toml");
+    std::fs::write(&config, "[camera]\nwidth = 160\nheight = 90\n").expect("config");
+    let (frames, log) = (rec.join("frames/v0000"), rec.join("logs/flight_0.csv"));
+    let mut args = vec![
+        "frugal-pilot",
+        "--input",
+        p(&frames),
+        "--every-frame",
+        "--odometry",
+        p(&log),
+        "--config",
+        p(&config),
+        "--json",
+        p(json),
+    ];
+    args.extend_from_slice(perception);
+    let args = frugal_pilot::Args::parse_from(args);
+    frugal_pilot::run(&args, &AtomicBool::new(false), |l| eprintln!("{l}")).expect("pilot")
+}
+
+/// The simulator's commands, from the recording's flight log.
+fn flown(rec: &Path) -> Vec<(u64, NavCommand)> {
+    FlightLog::read(&rec.join("logs/flight_0.csv"))
+        .expect("flight log")
+        .commands()
+}
+
+fn lines(path: &Path) -> Vec<serde_json::Value> {
+    std::fs::read_to_string(path)
+        .expect("json lines")
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("json"))
+        .filter(|v: &serde_json::Value| v.get("summary").is_none())
+        .collect()
+}
+
+#[test]
+fn on_a_recorded_flight_the_pilot_issues_the_simulators_commands_on_the_same_frames() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let rec = tmp.path().join("rec");
+    record(tmp.path(), &rec, &["--gt-compute-ms", "40"]);
+    let flown = flown(&rec);
+    // the flight turned left at the TURN LEFT sign and landed at STOP
+    let names: Vec<&str> = flown.iter().map(|c| c.1.name()).collect();
+    assert_eq!(names, ["turn_left", "land"], "{flown:?}");
+    let percepts = rec.join("logs/percepts_0.jsonl");
+    let summary = pilot(
+        tmp.path(),
+        &rec,
+        &tmp.path().join("out.jsonl"),
+        &["--detections", p(&percepts)],
+    );
+    assert_eq!(summary.commands, flown);
+    // it stopped on the landing frame, the recording's last
+    assert_eq!(Some(summary.frames - 1), flown.last().map(|c| c.0));
+}
+
+/// A detector that sees the maze's signs at 160×90 after a minute of training: wider
+/// than the tiny profile's, more frames, more epochs.
+const SIGHTED: &str = r#"profile = "tiny"
+[data]
+videos_per_combo = 16
+frames_per_video = 8
+[detector.model]
+backbone = [
+  { out_channels = 16, stride = 2, convs = 1 },
+  { out_channels = 32, stride = 2, convs = 1 },
+  { out_channels = 32, stride = 1, convs = 1 },
+]
+rpn_channels = 16
+roi_hidden = 64
+[detector.train]
+epochs = 20
+train_frames = 0
+val_frames = 12
+batch_size = 4
+threads = 2
+"#;
+
+#[test]
+fn through_a_real_bundle_the_pilot_perceives_and_acts_as_the_simulator_frame_by_frame() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let run = tmp.path().join("run");
+    let cfg = tmp.path().join("sighted.toml");
+    std::fs::write(&cfg, SIGHTED).expect("config");
+    frugal(&[
+        "run",
+        p(&cfg),
+        "--until",
+        "bundle",
+        "--quiet",
+        "--out",
+        p(&run),
+    ])
+    .expect("run");
+    let bundle = run.join("bundle");
+    let rec = tmp.path().join("rec");
+    record(
+        tmp.path(),
+        &rec,
+        &[
+            "--perception",
+            "adaptive",
+            "--bundle",
+            p(&bundle),
+            "--threads",
+            "1",
+            "--time-limit",
+            "60",
+        ],
+    );
+    let out = tmp.path().join("out.jsonl");
+    let summary = pilot(tmp.path(), &rec, &out, &["--bundle", p(&bundle)]);
+    let sim = lines(&rec.join("logs/percepts_0.jsonl"));
+    let got = lines(&out);
+    assert_eq!(got.len(), sim.len(), "one line per recorded frame");
+    let (mut boxes, mut reads) = (0, 0);
+    for (s, g) in sim.iter().zip(&got) {
+        assert_eq!(g["frame"], s["frame"]);
+        assert_eq!(g["decision"], s["decision"], "frame {}", s["frame"]);
+        let shown: Vec<serde_json::Value> = g["boxes"]
+            .as_array()
+            .expect("boxes")
+            .iter()
+            .map(|b| serde_json::json!({"class": b["class"], "score": b["score"], "box": b["box"]}))
+            .collect();
+        assert_eq!(
+            &serde_json::Value::from(shown),
+            &s["boxes"],
+            "frame {}",
+            s["frame"]
+        );
+        // the reference variant confirmed on exactly the frames the simulator's did
+        let confirmed = g["confirmed_by"].as_array().is_some_and(|c| !c.is_empty());
+        assert_eq!(
+            confirmed,
+            s.get("confirm").is_some(),
+            "frame {}",
+            s["frame"]
+        );
+        boxes += s["boxes"].as_array().map_or(0, Vec::len);
+        reads += usize::from(confirmed);
+    }
+    // not vacuous: the detector reported boxes and the navigator asked it to confirm
+    assert!(
+        boxes > 20 && reads > 0,
+        "{boxes} boxes, {reads} confirmation reads"
+    );
+    assert_eq!(summary.commands, flown(&rec));
+    eprintln!(
+        "{} frames, {boxes} boxes, {reads} confirmation reads, commands {:?}",
+        got.len(),
+        summary.commands
+    );
+}
