@@ -28,6 +28,7 @@
 //! retries = 5          # reconnections in a row before giving up
 //! backoff_ms = 500     # first wait, doubled on each failure (capped at 8 s)
 //! stall_timeout_ms = 2000
+//! queue = 1            # frames that may wait for perception; the oldest drops first
 //! ```
 use frugal_nav::NavConfig;
 use std::path::{Path, PathBuf};
@@ -169,6 +170,12 @@ pub struct InputConfig {
     pub backoff_ms: u64,
     /// No frame for this long: the stream has stalled and is reconnected, ms.
     pub stall_timeout_ms: u64,
+    /// Frames that may wait for perception (1..=8). When one more arrives, the oldest
+    /// is dropped: perception is never more than this many frames behind the camera.
+    /// 1 (the default) keeps only the newest, the lowest latency; more lets the fast
+    /// tracked frames after a slow detection catch up instead of dropping, at the cost
+    /// of acting on older frames.
+    pub queue: usize,
 }
 
 impl Default for InputConfig {
@@ -177,6 +184,7 @@ impl Default for InputConfig {
             retries: 5,
             backoff_ms: 500,
             stall_timeout_ms: 2000,
+            queue: 1,
         }
     }
 }
@@ -243,6 +251,12 @@ impl PilotConfig {
         }
         if self.input.stall_timeout_ms == 0 {
             return Err("input: stall_timeout_ms must be positive".into());
+        }
+        if !(1..=8).contains(&self.input.queue) {
+            return Err(format!(
+                "input: queue must be between 1 and 8 frames, not {}",
+                self.input.queue
+            ));
         }
         Ok(())
     }

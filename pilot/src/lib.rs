@@ -345,7 +345,7 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
     }
 
     let reference = perception.reference();
-    let mailbox = Arc::new(Mailbox::default());
+    let mailbox = Arc::new(Mailbox::new(config.input.queue));
     let stats = Arc::new(InputStats::default());
     let halt = Arc::new(AtomicBool::new(false));
     let reader = Reader {

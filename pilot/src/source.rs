@@ -1,6 +1,8 @@
-//! Video in: a reader thread decodes the input continuously and leaves only the newest
-//! frame in a one-slot [`Mailbox`]; a frame overwritten before perception took it is
-//! a drop. Inputs ([`Input::parse`]):
+//! Video in: a reader thread decodes the input continuously and leaves the newest
+//! frames in a bounded [`Mailbox`] (`[input] queue` frames, 1 = only the newest); when
+//! it is full the oldest frame waiting is dropped (the latest-frame rule: perception is
+//! never more than `queue` frames behind the camera) and counted. Inputs
+//! ([`Input::parse`]):
 //!
 //! - a video file, decoded by `frugal_data::media` (the `ffmpeg` program) with each
 //!   frame's exact presentation time; paced at those times (`realtime`, the default, as
@@ -98,40 +100,58 @@ pub struct InputStats {
 
 #[derive(Default)]
 struct Slot {
-    frame: Option<Frame>,
+    frames: std::collections::VecDeque<Frame>,
     drops: u64,
     closed: bool,
     error: Option<String>,
 }
 
-/// The one-slot mailbox between the reader and perception.
-#[derive(Default)]
+/// The bounded queue between the reader and perception.
 pub struct Mailbox {
     slot: Mutex<Slot>,
     changed: Condvar,
+    capacity: usize,
+}
+
+impl Default for Mailbox {
+    fn default() -> Self {
+        Self::new(1)
+    }
 }
 
 impl Mailbox {
+    /// A mailbox holding at most `capacity` frames (at least 1).
+    pub fn new(capacity: usize) -> Self {
+        Self {
+            slot: Mutex::default(),
+            changed: Condvar::new(),
+            capacity: capacity.max(1),
+        }
+    }
+
     fn lock(&self) -> std::sync::MutexGuard<'_, Slot> {
         self.slot
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
     }
 
-    /// Leave `frame` as the newest. `wait`: block until the slot is empty instead
-    /// of overwriting (every-frame mode) — or until `stop` is raised.
+    /// Leave `frame` as the newest, dropping the oldest waiting frame when the queue
+    /// is full. `wait`: block until there is room instead of dropping (every-frame
+    /// mode) — or until `stop` is raised.
     pub fn put(&self, frame: Frame, wait: bool, stop: &AtomicBool) {
         let mut slot = self.lock();
-        while wait && slot.frame.is_some() && !stop.load(Ordering::Relaxed) {
+        while wait && slot.frames.len() >= self.capacity && !stop.load(Ordering::Relaxed) {
             slot = self
                 .changed
                 .wait_timeout(slot, Duration::from_millis(50))
                 .unwrap_or_else(std::sync::PoisonError::into_inner)
                 .0;
         }
-        if slot.frame.replace(frame).is_some() {
+        while slot.frames.len() >= self.capacity {
+            slot.frames.pop_front();
             slot.drops += 1;
         }
+        slot.frames.push_back(frame);
         self.changed.notify_all();
     }
 
@@ -143,12 +163,12 @@ impl Mailbox {
         self.changed.notify_all();
     }
 
-    /// The newest frame, waiting for one; `None` once the input is closed and empty
-    /// or `stop` is raised.
+    /// The oldest frame waiting, waiting for one; `None` once the input is closed and
+    /// empty or `stop` is raised.
     pub fn take(&self, stop: &AtomicBool) -> Option<Frame> {
         let mut slot = self.lock();
         loop {
-            if let Some(frame) = slot.frame.take() {
+            if let Some(frame) = slot.frames.pop_front() {
                 self.changed.notify_all();
                 return Some(frame);
             }
@@ -528,5 +548,61 @@ impl Stream {
             (Ok(s), None) => format!("ended ({s})"),
             (Err(e), _) => format!("ended: {e}"),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame(index: u64) -> Frame {
+        Frame {
+            index,
+            time_s: index as f64 / 60.0,
+            arrived: Instant::now(),
+            image: RgbImage::new(2, 2),
+        }
+    }
+
+    #[test]
+    fn a_full_mailbox_drops_its_oldest_frame_and_counts_it() {
+        let stop = AtomicBool::new(false);
+        for capacity in [1, 3] {
+            let mailbox = Mailbox::new(capacity);
+            for i in 0..5 {
+                mailbox.put(frame(i), false, &stop);
+            }
+            mailbox.close(None);
+            let kept: Vec<u64> = std::iter::from_fn(|| mailbox.take(&stop))
+                .map(|f| f.index)
+                .collect();
+            // the newest `capacity` frames, oldest first; the rest dropped
+            let newest: Vec<u64> = (5 - capacity as u64..5).collect();
+            assert_eq!(kept, newest, "capacity {capacity}");
+            assert_eq!(mailbox.drops(), 5 - capacity as u64);
+        }
+    }
+
+    #[test]
+    fn every_frame_mode_waits_for_room_instead_of_dropping() {
+        let stop = Arc::new(AtomicBool::new(false));
+        let mailbox = Arc::new(Mailbox::new(2));
+        let writer = {
+            let (mailbox, stop) = (Arc::clone(&mailbox), Arc::clone(&stop));
+            std::thread::spawn(move || {
+                for i in 0..20 {
+                    mailbox.put(frame(i), true, &stop);
+                }
+                mailbox.close(None);
+            })
+        };
+        let mut got = Vec::new();
+        while let Some(f) = mailbox.take(&stop) {
+            got.push(f.index);
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        writer.join().unwrap();
+        assert_eq!(got, (0..20).collect::<Vec<_>>());
+        assert_eq!(mailbox.drops(), 0);
     }
 }

@@ -131,4 +131,18 @@ fn a_bad_configuration_file_is_one_line_naming_it() {
         err.contains("pilot.toml") && err.contains("actions[1]") && err.contains("hover"),
         "{err}"
     );
+    std::fs::write(&config, "[input]\nqueue = 0\n").unwrap();
+    let (ok, err) = pilot(&[
+        "--bundle",
+        dir.to_str().unwrap(),
+        "--input",
+        "/dev/video99",
+        "--config",
+        config.to_str().unwrap(),
+    ]);
+    assert!(!ok);
+    assert!(
+        err.contains("pilot.toml") && err.contains("queue must be between 1 and 8"),
+        "{err}"
+    );
 }
