@@ -96,6 +96,12 @@ pub struct BudgetConfig {
     pub clock_runs: u32,
     /// Relative jitter of the compute times between clock runs (0 = none).
     pub jitter: f64,
+    /// Clock run `r` streams each video from frame `r mod` the longest period (each
+    /// strategy alike), so that the pooled runs see every phase of a detect-every-`N`
+    /// schedule against the video's content: the same fixed schedule started one, two
+    /// or four frames later moved sAP@0.5 on the default test videos by 2 points.
+    /// `false`: every clock run starts on the first frame.
+    pub phases: bool,
     /// What a segment earns per frame ([`BudgetReward`]).
     pub reward: BudgetReward,
 }
@@ -147,6 +153,7 @@ impl Default for BudgetConfig {
             seed: 7,
             clock_runs: 8,
             jitter: 0.05,
+            phases: true,
             reward: BudgetReward::Shown,
         }
     }
@@ -213,6 +220,16 @@ impl BudgetConfig {
     /// The action index of (variant, period index).
     pub fn action(&self, variant: usize, period: usize) -> usize {
         variant * self.periods.len() + period
+    }
+
+    /// The frame clock run `clock_run` starts each video on ([`BudgetConfig::phases`]).
+    pub fn start_frame(&self, clock_run: u32) -> usize {
+        let longest = self.periods.last().copied().unwrap_or(1).max(1);
+        if self.phases {
+            (clock_run % longest) as usize
+        } else {
+            0
+        }
     }
 }
 

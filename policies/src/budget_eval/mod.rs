@@ -276,6 +276,9 @@ impl Brain<'_> {
 pub struct BudgetRun {
     /// The video.
     pub video: u32,
+    /// The video's first frame streamed ([`crate::budget::BudgetConfig::start_frame`]):
+    /// the stream's frame `i` is the video's frame `start + i`.
+    pub start: usize,
     /// The stream.
     pub run: StreamRun,
     /// Per processed frame, the variant that detected it (`None`: tracked).
@@ -368,7 +371,9 @@ pub fn stream_strategy(
     let tracker = strategy.tracker();
     let mut detect = Vec::new();
     let arr = video.arrivals_ms(cfg.fps);
-    let run = simulate(&arr, cfg.rule, cfg.slowdown, |f| {
+    let start = cfg.start_frame(clock_run).min(arr.len().saturating_sub(1));
+    let run = simulate(&arr[start..], cfg.rule, cfg.slowdown, |i| {
+        let f = start + i;
         let (state, mut ms) = if tracker {
             p.track(f)?
         } else {
@@ -406,6 +411,7 @@ pub fn stream_strategy(
     })?;
     Ok(BudgetRun {
         video: video.id,
+        start,
         run,
         detect,
     })

@@ -43,9 +43,13 @@ type Scored = (f64, f64, f64, usize, StreamTiming);
 fn score_runs(log: &ReplayLog, runs: &[(&VideoLog, &BudgetRun)], fps: f64, iou: f32) -> Scored {
     let mut images: Vec<ImageResult> = Vec::new();
     let mut offline: Vec<ImageResult> = Vec::new();
-    let arrs: Vec<Vec<f64>> = runs.iter().map(|(v, _)| v.arrivals_ms(fps)).collect();
+    // a run streamed from frame `start` is scored on the frames it streamed
+    let arrs: Vec<Vec<f64>> = runs
+        .iter()
+        .map(|(v, r)| v.arrivals_ms(fps).get(r.start..).unwrap_or_default().to_vec())
+        .collect();
     for ((video, r), arr) in runs.iter().zip(&arrs) {
-        let tr: Vec<_> = (0..video.frames.len())
+        let tr: Vec<_> = (r.start..video.frames.len())
             .map(|f| ground_truth(video, f))
             .collect();
         images.extend(streaming_images(arr, &tr, &r.run));

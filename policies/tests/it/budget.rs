@@ -317,6 +317,75 @@ fn a_shared_tracking_cache_changes_no_stream() {
     assert!(hits > 0, "no stream was read back from the cache");
 }
 
+/// Clock run `r` streams every strategy from frame `r mod` the longest period, and
+/// that run is scored on the frames it streamed; with `phases` off every run starts on
+/// the first frame.
+#[test]
+fn each_clock_run_starts_every_strategy_at_its_own_phase() {
+    let (log, frames, mut pol) = trained();
+    pol.config.clock_runs = 3;
+    let mut policy = train(&log, &PolicyConfig::default()).unwrap();
+    policy.budget = Some(pol.clone());
+    let bytes = frugal_policies::bundle::policy_bundle(&policy, EvalConfig::default().thresholds())
+        .unwrap();
+    let video = log.split(Split::Test).next().unwrap();
+    let cache = VideoCache::default();
+    let longest = *pol.config.periods.last().unwrap();
+    for phases in [true, false] {
+        pol.config.phases = phases;
+        for c in 0..pol.config.clock_runs {
+            for s in [BudgetStrategy::StaticTracker, BudgetStrategy::Budget] {
+                let run =
+                    stream_strategy(&log, video, &frames, COST, &pol, 1, &bytes, s, 0.5, c, &cache)
+                        .unwrap();
+                let start = if phases { (c % longest) as usize } else { 0 };
+                assert_eq!(run.start, start, "{s:?} run {c}");
+                // every frame from the start on is processed or skipped, none before
+                assert_eq!(
+                    run.run.outputs.len() + run.run.skipped,
+                    video.frames.len() - start,
+                    "{s:?} run {c}"
+                );
+                // the first frame streamed is detected
+                assert!(run.detect[0].is_some(), "{s:?} run {c}");
+            }
+        }
+    }
+    // scored on the frames streamed: a run from frame 2 on is not charged for frames
+    // 0 and 1 (the ground truth of the frames it streamed only)
+    pol.config.phases = true;
+    let runs: Vec<_> = (0..3)
+        .map(|c| {
+            stream_strategy(
+                &log,
+                video,
+                &frames,
+                COST,
+                &pol,
+                1,
+                &bytes,
+                BudgetStrategy::StaticTracker,
+                0.5,
+                c,
+                &cache,
+            )
+            .unwrap()
+        })
+        .collect();
+    let scores = budget_scores(
+        &log,
+        &[video],
+        &pol,
+        &[(1, BudgetStrategy::StaticTracker, runs)],
+        0.5,
+    );
+    let all = scores.iter().find(|s| s.scenario == "all").unwrap();
+    assert_eq!(
+        all.timing.frames,
+        3 * video.frames.len() - (0..3).map(|c| (c % longest) as usize).sum::<usize>()
+    );
+}
+
 /// Strategies that behave alike under two budgets are streamed once (`stream_all`)
 /// and scored alike.
 #[test]
