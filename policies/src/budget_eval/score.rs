@@ -46,7 +46,12 @@ fn score_runs(log: &ReplayLog, runs: &[(&VideoLog, &BudgetRun)], fps: f64, iou: 
     // a run streamed from frame `start` is scored on the frames it streamed
     let arrs: Vec<Vec<f64>> = runs
         .iter()
-        .map(|(v, r)| v.arrivals_ms(fps).get(r.start..).unwrap_or_default().to_vec())
+        .map(|(v, r)| {
+            v.arrivals_ms(fps)
+                .get(r.start..)
+                .unwrap_or_default()
+                .to_vec()
+        })
         .collect();
     for ((video, r), arr) in runs.iter().zip(&arrs) {
         let tr: Vec<_> = (r.start..video.frames.len())

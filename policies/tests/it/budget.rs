@@ -335,9 +335,10 @@ fn each_clock_run_starts_every_strategy_at_its_own_phase() {
         pol.config.phases = phases;
         for c in 0..pol.config.clock_runs {
             for s in [BudgetStrategy::StaticTracker, BudgetStrategy::Budget] {
-                let run =
-                    stream_strategy(&log, video, &frames, COST, &pol, 1, &bytes, s, 0.5, c, &cache)
-                        .unwrap();
+                let run = stream_strategy(
+                    &log, video, &frames, COST, &pol, 1, &bytes, s, 0.5, c, &cache,
+                )
+                .unwrap();
                 let start = if phases { (c % longest) as usize } else { 0 };
                 assert_eq!(run.start, start, "{s:?} run {c}");
                 // every frame from the start on is processed or skipped, none before
