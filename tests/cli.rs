@@ -37,6 +37,13 @@ pub(crate) fn train_tiny(data: &Path, cfg: &Path, out: &Path, extra: &[&str]) {
     frugal(&args).unwrap_or_else(|e| panic!("training into {}: {e}", out.display()));
 }
 
+/// A maze file the simulator ships (`sim/mazes/<name>`).
+pub(crate) fn maze(name: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../sim/mazes")
+        .join(name)
+}
+
 /// A temporary path as an argument.
 pub(crate) fn p(path: &Path) -> &str {
     path.to_str().expect("temp paths are UTF-8")

@@ -150,3 +150,27 @@ mod tests {
         assert!(e.contains("flight.csv") && e.contains("row 1"), "{e}");
     }
 }
+
+/// One detection as the JSON lines of a flight's perception record and of the pilot's
+/// output and `--detections` files write it: `{"class", "score", "box": [x1, y1, x2,
+/// y2]}` in pixels of the camera.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct DetectionRecord {
+    /// Class id.
+    pub class: u16,
+    /// Score.
+    pub score: f32,
+    /// `[x1, y1, x2, y2]`.
+    #[serde(rename = "box")]
+    pub bbox: [f32; 4],
+}
+
+impl From<&frugal_runtime::Detection> for DetectionRecord {
+    fn from(d: &frugal_runtime::Detection) -> Self {
+        Self {
+            class: d.class,
+            score: d.score,
+            bbox: [d.bbox.x1, d.bbox.y1, d.bbox.x2, d.bbox.y2],
+        }
+    }
+}

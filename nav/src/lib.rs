@@ -27,7 +27,7 @@ pub use bundle::{
     verify_files,
 };
 pub use config::{NavConfig, NavDistances};
-pub use flight_log::{FlightLog, LogRow};
+pub use flight_log::{DetectionRecord, FlightLog, LogRow};
 pub use navigator::{
     ConfirmationRead, Mode, NavCommand, NavInput, NavStep, Navigator, Optics, Truth,
 };

@@ -553,12 +553,9 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
                 .detections
                 .iter()
                 .map(|d| {
-                    json!({
-                        "class": d.class,
-                        "sign": sign_name(&navigator, d.class),
-                        "score": d.score,
-                        "box": [d.bbox.x1, d.bbox.y1, d.bbox.x2, d.bbox.y2],
-                    })
+                    let mut b = json!(frugal_nav::DetectionRecord::from(d));
+                    b["sign"] = json!(sign_name(&navigator, d.class));
+                    b
                 })
                 .collect();
             let line = json!({

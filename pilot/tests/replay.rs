@@ -127,16 +127,7 @@ fn replay_files(dir: &Path, log: &FlightLog, frames: &[Vec<Detection>]) -> Vec<S
         .enumerate()
         .filter(|(_, d)| !d.is_empty())
         .map(|(i, d)| {
-            let boxes: Vec<_> = d
-                .iter()
-                .map(|d| {
-                    serde_json::json!({
-                        "class": d.class,
-                        "score": d.score,
-                        "box": [d.bbox.x1, d.bbox.y1, d.bbox.x2, d.bbox.y2],
-                    })
-                })
-                .collect();
+            let boxes: Vec<_> = d.iter().map(frugal_nav::DetectionRecord::from).collect();
             serde_json::json!({ "frame": i, "boxes": boxes }).to_string()
         })
         .collect();

@@ -91,58 +91,33 @@ fn a_bad_configuration_file_is_one_line_naming_it() {
     let dir = tmp.path().join("bundle");
     bundle(&dir, b"g", b"g");
     let config = tmp.path().join("pilot.toml");
-    std::fs::write(&config, "[camera]\nwidht = 480\n").unwrap();
-    let (ok, err) = pilot(&[
-        "--bundle",
-        dir.to_str().unwrap(),
-        "--input",
-        "/dev/video99",
-        "--config",
-        config.to_str().unwrap(),
-    ]);
-    assert!(!ok);
-    assert_eq!(err.lines().count(), 1, "{err}");
-    assert!(err.contains("pilot.toml") && err.contains("widht"), "{err}");
-    std::fs::write(&config, "[signs]\nsize_m = -1\n").unwrap();
-    let (ok, err) = pilot(&[
-        "--bundle",
-        dir.to_str().unwrap(),
-        "--input",
-        "/dev/video99",
-        "--config",
-        config.to_str().unwrap(),
-    ]);
-    assert!(!ok);
-    assert!(
-        err.contains("pilot.toml") && err.contains("size_m"),
-        "{err}"
-    );
-    std::fs::write(&config, "[signs]\nactions = [\"none\", \"hover\"]\n").unwrap();
-    let (ok, err) = pilot(&[
-        "--bundle",
-        dir.to_str().unwrap(),
-        "--input",
-        "/dev/video99",
-        "--config",
-        config.to_str().unwrap(),
-    ]);
-    assert!(!ok);
-    assert!(
-        err.contains("pilot.toml") && err.contains("actions[1]") && err.contains("hover"),
-        "{err}"
-    );
-    std::fs::write(&config, "[input]\nqueue = 0\n").unwrap();
-    let (ok, err) = pilot(&[
-        "--bundle",
-        dir.to_str().unwrap(),
-        "--input",
-        "/dev/video99",
-        "--config",
-        config.to_str().unwrap(),
-    ]);
-    assert!(!ok);
-    assert!(
-        err.contains("pilot.toml") && err.contains("queue must be between 1 and 8"),
-        "{err}"
-    );
+    // each bad file: one line naming the file and what is wrong in it
+    for (text, needles) in [
+        ("[camera]\nwidht = 480\n", &["widht"][..]),
+        ("[signs]\nsize_m = -1\n", &["size_m"][..]),
+        (
+            "[signs]\nactions = [\"none\", \"hover\"]\n",
+            &["actions[1]", "hover"][..],
+        ),
+        (
+            "[input]\nqueue = 0\n",
+            &["queue must be between 1 and 8"][..],
+        ),
+    ] {
+        std::fs::write(&config, text).unwrap();
+        let (ok, err) = pilot(&[
+            "--bundle",
+            dir.to_str().unwrap(),
+            "--input",
+            "/dev/video99",
+            "--config",
+            config.to_str().unwrap(),
+        ]);
+        assert!(!ok, "{text}");
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(err.contains("pilot.toml"), "{err}");
+        for n in needles {
+            assert!(err.contains(n), "{text}: {err}");
+        }
+    }
 }

@@ -25,7 +25,7 @@ use frugal_data::generate::{encode_png, frame_file};
 use frugal_data::{
     Clutter, DataError, Dataset, FrameRecord, Light, Object, Source, Split, VideoMeta, classes,
 };
-use frugal_nav::{FlightLog, LogRow};
+use frugal_nav::{DetectionRecord, FlightLog, LogRow};
 use frugal_runtime::Detection;
 use std::path::{Path, PathBuf};
 
@@ -55,16 +55,12 @@ pub fn percepts_file(id: u32) -> String {
 
 /// Detections as the pilot's JSON boxes: class, score, `[x1, y1, x2, y2]`.
 fn boxes_json(detections: &[Detection]) -> serde_json::Value {
-    detections
-        .iter()
-        .map(|d| {
-            serde_json::json!({
-                "class": d.class,
-                "score": d.score,
-                "box": [d.bbox.x1, d.bbox.y1, d.bbox.x2, d.bbox.y2],
-            })
-        })
-        .collect()
+    serde_json::json!(
+        detections
+            .iter()
+            .map(DetectionRecord::from)
+            .collect::<Vec<_>>()
+    )
 }
 
 /// One frame's perception as a `frugal-pilot --detections` line: `confirm` is present

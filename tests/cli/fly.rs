@@ -1,17 +1,10 @@
 //! `frugal fly`: closed-loop flights through the shipped easy maze with ground-truth
 //! perception at a small camera size, and its clear failures.
-use super::{frugal, json, p};
-use std::path::{Path, PathBuf};
-
-fn maze(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../sim/mazes")
-        .join(name)
-}
+use super::{frugal, json, maze, p};
 
 /// `frugal fly` with ground truth at 25 fps on the host and a 160×90 camera, quiet,
 /// plus `args`.
-fn small_flight<'a>(args: &[&'a str]) -> Vec<&'a str> {
+pub(crate) fn small_flight<'a>(args: &[&'a str]) -> Vec<&'a str> {
     let mut all = vec![
         "fly",
         "--width",

@@ -3,42 +3,28 @@
 //! same frames, first with the flight's perception replayed (ground truth, which turns
 //! and lands), then through a real bundle whose detector was trained here, where every
 //! frame's decision and boxes must equal what the simulator's perception returned.
-use super::{frugal, p};
+use super::{frugal, maze, p};
 use clap::Parser;
 use frugal_nav::{FlightLog, NavCommand};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
-fn maze(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../sim/mazes")
-        .join(name)
-}
-
-/// Fly the easy maze once at 160×90 on the host profile, recording every frame into
-/// `rec`, with `perception` arguments.
+/// Fly the easy maze once at 160×90 on the host profile (ground truth at 25 fps unless
+/// `perception` says otherwise), recording every frame into `rec`.
 fn record(tmp: &Path, rec: &Path, perception: &[&str]) {
     let (easy, out) = (maze("easy.maze"), tmp.join("fly"));
-    let mut args = vec![
-        "fly",
+    let mut args = super::fly::small_flight(&[
         "--maze",
         p(&easy),
         "--seeds",
         "1",
-        "--width",
-        "160",
-        "--height",
-        "90",
-        "--device",
-        "host",
         "--record",
         p(rec),
         "--record-every",
         "1",
         "--out",
         p(&out),
-        "--quiet",
-    ];
+    ]);
     args.extend_from_slice(perception);
     frugal(&args).expect("fly --record");
 }
@@ -86,7 +72,7 @@ fn lines(path: &Path) -> Vec<serde_json::Value> {
 fn on_a_recorded_flight_the_pilot_issues_the_simulators_commands_on_the_same_frames() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let rec = tmp.path().join("rec");
-    record(tmp.path(), &rec, &["--gt-compute-ms", "40"]);
+    record(tmp.path(), &rec, &[]);
     let flown = flown(&rec);
     // the flight turned left at the TURN LEFT sign and landed at STOP
     let names: Vec<&str> = flown.iter().map(|c| c.1.name()).collect();
