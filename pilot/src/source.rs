@@ -147,6 +147,10 @@ impl Mailbox {
                 .unwrap_or_else(std::sync::PoisonError::into_inner)
                 .0;
         }
+        if wait && slot.frames.len() >= self.capacity {
+            // stopping: the frame is not handed over, and no frame was dropped for it
+            return;
+        }
         while slot.frames.len() >= self.capacity {
             slot.frames.pop_front();
             slot.drops += 1;
@@ -604,5 +608,12 @@ mod tests {
         writer.join().unwrap();
         assert_eq!(got, (0..20).collect::<Vec<_>>());
         assert_eq!(mailbox.drops(), 0);
+        // a reader stopped while the queue is full hands nothing over and drops nothing
+        let full = Mailbox::new(1);
+        full.put(frame(0), true, &stop);
+        stop.store(true, Ordering::Relaxed);
+        full.put(frame(1), true, &stop);
+        assert_eq!(full.drops(), 0);
+        assert_eq!(full.take(&AtomicBool::new(false)).map(|f| f.index), Some(0));
     }
 }
