@@ -113,12 +113,6 @@ pub struct Mailbox {
     capacity: usize,
 }
 
-impl Default for Mailbox {
-    fn default() -> Self {
-        Self::new(1)
-    }
-}
-
 impl Mailbox {
     /// A mailbox holding at most `capacity` frames (at least 1).
     pub fn new(capacity: usize) -> Self {

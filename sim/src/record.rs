@@ -39,7 +39,8 @@ pub struct FootageRecorder {
     videos: Vec<VideoMeta>,
     frames: Vec<FrameRecord>,
     logs: Vec<FlightLog>,
-    percepts: Vec<Vec<serde_json::Value>>,
+    /// Per flight, its perception record's JSON lines.
+    percepts: Vec<String>,
 }
 
 /// The flight log of video `id` inside a recording folder.
@@ -109,7 +110,7 @@ impl FootageRecorder {
             fps: None,
         });
         self.logs.push(FlightLog::default());
-        self.percepts.push(Vec::new());
+        self.percepts.push(String::new());
     }
 
     /// Keep `view` if its index is a multiple of `every`: its PNG and its annotations.
@@ -165,7 +166,8 @@ impl FootageRecorder {
             });
         }
         if let Some(lines) = self.percepts.last_mut() {
-            lines.push(percept_line(video.frames, view));
+            lines.push_str(&percept_line(video.frames, view).to_string());
+            lines.push('\n');
         }
         video.frames += 1;
         Ok(())
@@ -192,8 +194,7 @@ impl FootageRecorder {
             log.write(&path)
                 .map_err(|e| DataError::invalid(&path, "flight log", e.message))?;
             let path = self.partial.path().join(percepts_file(video.id));
-            let text: String = percepts.iter().map(|l| format!("{l}\n")).collect();
-            std::fs::write(&path, text).map_err(|e| DataError::io(&path, e))?;
+            std::fs::write(&path, percepts).map_err(|e| DataError::io(&path, e))?;
         }
         self.partial.commit()?;
         dataset.root = self.out;

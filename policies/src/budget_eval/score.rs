@@ -47,10 +47,8 @@ fn score_runs(log: &ReplayLog, runs: &[(&VideoLog, &BudgetRun)], fps: f64, iou: 
     let arrs: Vec<Vec<f64>> = runs
         .iter()
         .map(|(v, r)| {
-            v.arrivals_ms(fps)
-                .get(r.start..)
-                .unwrap_or_default()
-                .to_vec()
+            let mut arr = v.arrivals_ms(fps);
+            arr.split_off(r.start.min(arr.len()))
         })
         .collect();
     for ((video, r), arr) in runs.iter().zip(&arrs) {
