@@ -109,27 +109,28 @@ fn covered(det: &BBox, region: &BBox) -> f32 {
     }
 }
 
-/// Average precision of one class at IoU `iou_thr`; `None` when the class has no
-/// ground truth in `images`.
-pub fn average_precision(
+/// One class's detections in `images` matched at IoU `iou_thr`: the number of truth
+/// boxes of the class, and `(score, is_tp)` of every scored detection (those excused by
+/// an ignore region left out), image by image, best first within an image. Records of
+/// several image sets, concatenated in image order, are the records of their union:
+/// [`ap_of_records`] of them equals [`average_precision`] of the union.
+pub fn class_records(
     images: &[ImageResult],
     class: ClassId,
     iou_thr: f32,
-    interp: Interpolation,
-) -> Option<f64> {
+) -> (usize, Vec<(f32, bool)>) {
     let n_truth: usize = images
         .iter()
         .map(|im| im.truth.iter().filter(|t| t.class == class).count())
         .sum();
-    if n_truth == 0 {
-        return None;
-    }
-    // (score, is_tp) over all images
     let mut scored: Vec<(f32, bool)> = Vec::new();
     for im in images {
         let mut dets: Vec<usize> = (0..im.detections.len())
             .filter(|&i| im.detections[i].class == class)
             .collect();
+        if dets.is_empty() {
+            continue;
+        }
         dets.sort_by(|&a, &b| im.detections[b].score.total_cmp(&im.detections[a].score));
         let matched = match_image(im, &dets, Some(class), iou_thr);
         for &d in dets.iter().filter(|&&d| matched.scored(d)) {
@@ -138,6 +139,19 @@ pub fn average_precision(
                 matched.pairs.iter().any(|m| m.0 == d),
             ));
         }
+    }
+    (n_truth, scored)
+}
+
+/// Average precision from [`class_records`] (`n_truth` truth boxes, `(score, is_tp)`
+/// records in image order); `None` when `n_truth` is 0.
+pub fn ap_of_records(
+    n_truth: usize,
+    mut scored: Vec<(f32, bool)>,
+    interp: Interpolation,
+) -> Option<f64> {
+    if n_truth == 0 {
+        return None;
     }
     scored.sort_by(|a, b| b.0.total_cmp(&a.0)); // stable: ties keep image order
     let (mut tp, mut fp) = (0usize, 0usize);
@@ -172,14 +186,27 @@ pub fn average_precision(
                 // numpy's `linspace(0, 1, 101)`, as pycocotools takes it: `k * 0.01`
                 // (0.07 is 0.07000000000000001 there), and exactly 1 at the end
                 let t = if k == 100 { 1.0 } else { k as f64 * 0.01 };
-                // first index with rec >= t (numpy searchsorted, side left)
-                if let Some(i) = rec.iter().position(|&r| r >= t) {
-                    sum += prec[i];
+                // first index with rec >= t (numpy searchsorted, side left; rec never
+                // falls)
+                if let Some(p) = prec.get(rec.partition_point(|&r| r < t)) {
+                    sum += p;
                 }
             }
             sum / 101.0
         }
     })
+}
+
+/// Average precision of one class at IoU `iou_thr`; `None` when the class has no
+/// ground truth in `images`.
+pub fn average_precision(
+    images: &[ImageResult],
+    class: ClassId,
+    iou_thr: f32,
+    interp: Interpolation,
+) -> Option<f64> {
+    let (n_truth, scored) = class_records(images, class, iou_thr);
+    ap_of_records(n_truth, scored, interp)
 }
 
 /// Everything [`evaluate`] measures.

@@ -177,9 +177,9 @@ pub fn sap(images: &[ImageResult], classes: usize) -> (f64, f64) {
             aps.iter().sum::<f64>() / aps.len() as f64
         }
     };
-    let ths = coco_iou_thresholds();
-    let all = ths.iter().map(|&t| per_iou(t)).sum::<f64>() / ths.len() as f64;
-    (per_iou(ths[0]), all)
+    let per: Vec<f64> = coco_iou_thresholds().iter().map(|&t| per_iou(t)).collect();
+    let all = per.iter().sum::<f64>() / per.len() as f64;
+    (per[0], all)
 }
 
 /// Timing figures of a set of streamed videos.

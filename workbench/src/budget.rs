@@ -6,12 +6,24 @@ use anyhow::Context;
 use frugal_data::{Dataset, Split};
 use frugal_policies::budget::{BudgetConfig, train_budget};
 use frugal_policies::budget_eval::{
-    BudgetScore, budget_csv, budget_margins, budget_scores, budget_table, plot_budget, stream_all,
+    BudgetScore, budget_csv, budget_margins, budget_scores, budget_table, plot_budget,
+    TuneSet, search_tables, stream_all,
 };
 use frugal_policies::eval::{EvalConfig, Strategy, run_all};
 use frugal_policies::replay::{DatasetFrames, VideoLog};
 use frugal_policies::{ReplayLog, TrainedPolicy};
 use std::path::{Path, PathBuf};
+
+/// `log` with the policy's (calibrated) buckets, so that a log recorded elsewhere
+/// reports and buckets scores exactly as the policy was trained to.
+fn with_policy_buckets(log: &ReplayLog, policy: &TrainedPolicy) -> ReplayLog {
+    let mut log = log.clone();
+    log.families = policy.families.clone();
+    for (v, p) in log.variants.iter_mut().zip(&policy.variants) {
+        v.family = p.family;
+    }
+    log
+}
 
 /// Score `log`'s test videos and write `budget.json|csv|md` and the plots into `out`.
 fn score_log(
@@ -33,14 +45,7 @@ fn score_log(
             pol.variants.join(", ")
         );
     }
-    // the policy's (calibrated) buckets, so that a log recorded elsewhere reports and
-    // buckets scores exactly as the policy was trained to
-    let mut log = log.clone();
-    log.families = policy.families.clone();
-    for (v, p) in log.variants.iter_mut().zip(&policy.variants) {
-        v.family = p.family;
-    }
-    let log = &log;
+    let log = &with_policy_buckets(log, policy);
     let ds = Dataset::load(data)?;
     let frames = DatasetFrames::new(&ds);
     let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
@@ -74,6 +79,7 @@ pub fn run(
     data: Option<&Path>,
     config: Option<&Path>,
     heldout: &[PathBuf],
+    tune: &[PathBuf],
     eval: &EvalConfig,
 ) -> anyhow::Result<()> {
     let log = ReplayLog::load(log_path)?;
@@ -114,6 +120,57 @@ pub fn run(
         );
     }
     policy.budget = Some(pol);
+    // the tables are chosen on the training videos and every tuning log's videos
+    let tune_logs: Vec<(ReplayLog, Dataset)> = tune
+        .iter()
+        .map(|p| {
+            let l = with_policy_buckets(&ReplayLog::load(p)?, &policy);
+            let ds = Dataset::load(&l.dataset)
+                .with_context(|| format!("{}: its dataset", p.display()))?;
+            Ok((l, ds))
+        })
+        .collect::<anyhow::Result<_>>()?;
+    let tune_frames: Vec<DatasetFrames> = tune_logs
+        .iter()
+        .map(|(_, ds)| DatasetFrames::new(ds))
+        .collect();
+    let mut sets = vec![TuneSet {
+        log: &log,
+        frames: &frames,
+        videos: train.clone(),
+    }];
+    for ((l, _), f) in tune_logs.iter().zip(&tune_frames) {
+        sets.push(TuneSet {
+            log: l,
+            frames: f,
+            videos: l.videos.iter().collect(),
+        });
+    }
+    let pb = crate::features::counter(false, "tables streamed on the tuning videos");
+    let traces = search_tables(
+        &sets,
+        cost,
+        &mut policy,
+        eval.thresholds(),
+        0.5,
+        &|| pb.inc(1),
+    )?;
+    pb.finish_and_clear();
+    for (b, t) in cfg.budgets_ms.iter().zip(&traces) {
+        println!(
+            "budget {b} ms on the tuning clock ({} videos): learnt table sAP@0.5 {:.1}, best fixed schedule {:.1}; started from {}, {} state(s) changed over {} tables: {:.1} (halves {:.1} / {:.1}), {:.2} device ms/frame",
+            sets.iter().map(|s| s.videos.len()).sum::<usize>(),
+            100.0 * t.learnt_sap50,
+            100.0 * t.best_fixed_sap50,
+            t.start,
+            t.changes,
+            t.tables,
+            100.0 * t.sap50,
+            100.0 * t.halves_sap50[0],
+            100.0 * t.halves_sap50[1],
+            t.device_ms_per_frame
+        );
+    }
     std::fs::create_dir_all(out)?;
     policy.save(&out.join("policy.json"))?;
     let scores = score_log(&log, &root, &policy, cost, eval, out)?;

@@ -253,6 +253,20 @@ pub(crate) fn bar(quiet: bool, len: usize, msg: &'static str) -> ProgressBar {
     bar
 }
 
+/// A counter of work whose total is not known in advance, hidden when `quiet`.
+pub(crate) fn counter(quiet: bool, msg: &'static str) -> ProgressBar {
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new_spinner()
+    };
+    if let Ok(style) = ProgressStyle::with_template("{spinner} {msg}: {pos}, {elapsed}") {
+        bar.set_style(style);
+    }
+    bar.set_message(msg);
+    bar
+}
+
 /// Train SVM sets for `params` on `frames`, with a progress bar unless `quiet`.
 fn train_model(
     ds: &Dataset,

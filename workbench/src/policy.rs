@@ -78,6 +78,11 @@ struct BudgetArgs {
     /// videos of a seed the policy never saw; each gets `heldout-<i>/` in the output.
     #[arg(long = "heldout")]
     heldout: Vec<PathBuf>,
+    /// More replay logs of the same variants whose videos (every split) the budget
+    /// tables are chosen on, with the log's training videos: a tuning set of its own
+    /// seed, never scored on.
+    #[arg(long = "tune")]
+    tune: Vec<PathBuf>,
     /// The paper MDP's evaluation settings (as `frugal policy eval --config`): its
     /// thresholds and accesses per image in the streamed `mdp+tracker` strategy.
     #[arg(long)]
@@ -423,6 +428,7 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
             a.data.as_deref(),
             a.config.as_deref(),
             &a.heldout,
+            &a.tune,
             &read_eval_config(a.eval_config.as_deref())?,
         ),
         PolicyCommand::Eval(a) => {

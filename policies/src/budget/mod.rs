@@ -104,6 +104,13 @@ pub struct BudgetConfig {
     pub phases: bool,
     /// What a segment earns per frame ([`BudgetReward`]).
     pub reward: BudgetReward,
+    /// Sweeps of the search on the clock over the states a table visits
+    /// ([`crate::budget_eval::search_tables`]); 0: the start alone (the learnt table or
+    /// the best fixed schedule, whichever streams better on the training videos).
+    pub search_rounds: u32,
+    /// Least gain of sAP@0.5 (0–1) over the training videos for the search to keep a
+    /// change.
+    pub search_min_gain: f64,
 }
 
 /// What a segment of the semi-MDP earns per frame.
@@ -155,6 +162,8 @@ impl Default for BudgetConfig {
             jitter: 0.05,
             phases: true,
             reward: BudgetReward::Shown,
+            search_rounds: 2,
+            search_min_gain: 0.002,
         }
     }
 }
@@ -207,6 +216,9 @@ impl BudgetConfig {
                 "approxdet_every",
                 "approxdet_every and max_tracks must be >= 1",
             );
+        }
+        if !(self.search_min_gain.is_finite() && self.search_min_gain >= 0.0) {
+            return bad("search_min_gain", "must be finite and >= 0");
         }
         if !(self.switch_cost.is_finite() && self.switch_cost >= 0.0 && self.smoothing >= 0.0) {
             return bad(
@@ -271,6 +283,12 @@ pub struct BudgetPolicy {
     pub train_f1: f64,
     /// Action per state ([`state_index`] order): `variant · P + period index`.
     pub actions: Vec<u16>,
+    /// What the search on the clock did ([`crate::budget_eval::search_tables`]);
+    /// `None` when the table is the learnt one, unsearched. After the search,
+    /// `expected_ms`, `p95_ms` and `train_f1` are those of its clock runs on the
+    /// training videos.
+    #[serde(default)]
+    pub search: Option<crate::budget_eval::SearchTrace>,
 }
 
 /// Budget policies for every configured budget, and the ApproxDet-style tables.
@@ -388,8 +406,22 @@ impl BudgetPolicies {
             .unwrap_or(0)
     }
 
+    /// Static + tracker's fixed action under budget `k`: the fixed schedule that streamed
+    /// best on the training videos when the search on the clock ran
+    /// ([`crate::budget_eval::SearchTrace::best_fixed`]), else the best static variant
+    /// ([`BudgetPolicies::static_under`]) at the shortest period that fits
+    /// ([`BudgetPolicies::period_under`]).
+    pub fn static_tracker(&self, k: usize) -> usize {
+        if let Some(t) = self.policies.get(k).and_then(|p| p.search.as_ref()) {
+            return usize::from(t.best_fixed);
+        }
+        let b = self.config.budgets_ms.get(k).copied().unwrap_or(f64::INFINITY);
+        let st = self.static_under(b);
+        self.config.action(st, self.period_under(st, b))
+    }
+
     /// The shortest period whose action with variant `v` fits `budget_ms` (the longest
-    /// when none does): static + tracker.
+    /// when none does).
     pub fn period_under(&self, v: usize, budget_ms: f64) -> usize {
         let p = self.config.periods.len();
         (0..p)

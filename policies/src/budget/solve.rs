@@ -188,6 +188,7 @@ pub fn train_budget(
             p95_ms: best.2,
             train_f1: best.3,
             actions: best.0.iter().map(|&a| a as u16).collect(),
+            search: None,
         });
     }
     Ok(out)

@@ -3,10 +3,12 @@
 //!
 //! Same variants, same videos, same clock for every strategy, at every budget:
 //!
-//! 1. `static` / `static+tracker`: the best static variant under the budget (the most
-//!    accurate, detecting every frame on the training videos, whose detection fits the
-//!    budget; the cheapest when none does), detecting every frame, or every `N` frames
-//!    with the tracker between (the shortest `N` that fits);
+//! 1. `static`: the best static variant under the budget (the most accurate, detecting
+//!    every frame on the training videos, whose detection fits the budget; the
+//!    cheapest when none does), detecting every frame; `static+tracker`: the fixed
+//!    (variant, every `N`) schedule that fits the budget and streams best on the
+//!    training videos ([`search_tables`]; without the search, the best static variant
+//!    at the shortest `N` that fits);
 //! 2. `random+tracker`: at every decision, an action drawn uniformly from those that
 //!    fit the budget;
 //! 3. `approxdet`: an ApproxDet-style scheduler (Xu et al., SenSys 2020): every 8
@@ -24,10 +26,12 @@
 //! The paper's MDP also keeps its offline (clock-free) evaluation in [`crate::eval`].
 
 mod score;
+mod search;
 
 pub use score::{
     BudgetScore, Margin, budget_csv, budget_margins, budget_scores, budget_table, plot_budget,
 };
+pub use search::{SearchTrace, TuneSet, search_tables};
 
 use crate::budget::{BudgetPolicies, Perceiver, TrackState, VideoCache, largest};
 use crate::error::{PolicyError, Result};
@@ -45,7 +49,8 @@ use serde::{Deserialize, Serialize};
 pub enum BudgetStrategy {
     /// The best static variant under the budget, every frame.
     Static,
-    /// The same variant with the tracker, every `N` frames.
+    /// The fixed (variant, every `N`) schedule, with the tracker, that streams best on
+    /// the training videos.
     StaticTracker,
     /// A random action that fits the budget at every decision, with the tracker.
     RandomTracker,
@@ -114,9 +119,7 @@ impl BudgetPolicies {
         let st = self.static_under(b);
         match strategy {
             BudgetStrategy::Static => Behaviour::Fixed(strategy, self.config.action(st, 0)),
-            BudgetStrategy::StaticTracker => {
-                Behaviour::Fixed(strategy, self.config.action(st, self.period_under(st, b)))
-            }
+            BudgetStrategy::StaticTracker => Behaviour::Fixed(strategy, self.static_tracker(k)),
             BudgetStrategy::RandomTracker => Behaviour::Random(self.allowed(b)),
             BudgetStrategy::Approxdet => {
                 Behaviour::Approxdet(self.allowed(b / self.config.approxdet_headroom))
@@ -140,8 +143,9 @@ pub fn first_alike(pol: &BudgetPolicies, pairs: &[(usize, BudgetStrategy)]) -> V
 
 /// Who decides, frame by frame.
 enum Brain<'a> {
-    /// The runtime's scheduler over a bundle with the budget tables.
-    Scheduler(Box<Scheduler<'a>>),
+    /// The runtime's scheduler over a bundle with the budget tables, and the table
+    /// states it has looked up.
+    Scheduler(Box<Scheduler<'a>>, Vec<u32>),
     /// The runtime's controller over the bundle's MDP table.
     Controller(Box<Controller<'a>>),
     /// A fixed, random or ApproxDet-style choice of (variant, period).
@@ -183,10 +187,19 @@ impl Brain<'_> {
     ) -> Option<usize> {
         let frame = f as u32;
         match self {
-            Brain::Scheduler(s) => match s.step(frame, state) {
-                Decision::Detect { variant, .. } => Some(usize::from(variant)),
-                Decision::Track => None,
-            },
+            Brain::Scheduler(s, queried) => {
+                // the state the table is read at, if this step queries it
+                let at = s.state();
+                match s.step(frame, state) {
+                    Decision::Detect { variant, reason } => {
+                        if reason != frugal_runtime::Trigger::Start {
+                            queried.push(at as u32);
+                        }
+                        Some(usize::from(variant))
+                    }
+                    Decision::Track => None,
+                }
+            }
             // the score went to the controller in `detected`, as the runtime's `Pilot`
             Brain::Controller(c) => match c.step(&Observation {
                 frame,
@@ -250,7 +263,7 @@ impl Brain<'_> {
     /// asks for another access on the same frame.
     fn detected(&mut self, score: Option<f32>) -> Option<usize> {
         match self {
-            Brain::Scheduler(s) => {
+            Brain::Scheduler(s, _) => {
                 s.detected(score);
                 None
             }
@@ -264,7 +277,7 @@ impl Brain<'_> {
 
     fn shown(&mut self, f: usize, shown: &[Detection]) {
         match self {
-            Brain::Scheduler(s) => s.shown(f as u32, shown.len(), largest(shown)),
+            Brain::Scheduler(s, _) => s.shown(f as u32, shown.len(), largest(shown)),
             Brain::Period { content, .. } => content.shown(f as u32, shown.len(), largest(shown)),
             Brain::Controller(_) | Brain::Oracle { .. } => {}
         }
@@ -283,6 +296,9 @@ pub struct BudgetRun {
     pub run: StreamRun,
     /// Per processed frame, the variant that detected it (`None`: tracked).
     pub detect: Vec<Option<u16>>,
+    /// The budget table's states the budget policy looked its actions up at, in order
+    /// (empty for the other strategies).
+    pub queried: Vec<u32>,
 }
 
 /// Stream `strategy` under budget `k` of `pol` over `video`. `bundle` holds the
@@ -329,9 +345,7 @@ pub fn stream_strategy(
     let st = pol.static_under(budget_ms);
     let mut brain = match strategy {
         BudgetStrategy::Static => period(Chooser::Fixed(cfg.action(st, 0))),
-        BudgetStrategy::StaticTracker => period(Chooser::Fixed(
-            cfg.action(st, pol.period_under(st, budget_ms)),
-        )),
+        BudgetStrategy::StaticTracker => period(Chooser::Fixed(pol.static_tracker(k))),
         BudgetStrategy::RandomTracker => {
             let fits = pol.allowed(budget_ms);
             // seeded by the video alone: the same choices draw the same stream under
@@ -351,12 +365,13 @@ pub fn stream_strategy(
                 path: "<memory>".into(),
                 message: e.to_string(),
             })?;
-            Brain::Scheduler(Box::new(Scheduler::new(b, k).map_err(|e| {
-                PolicyError::Bundle {
+            Brain::Scheduler(
+                Box::new(Scheduler::new(b, k).map_err(|e| PolicyError::Bundle {
                     path: "<memory>".into(),
                     message: e.to_string(),
-                }
-            })?))
+                })?),
+                Vec::new(),
+            )
         }
         BudgetStrategy::Oracle => Brain::Oracle { fallback: st },
     };
@@ -409,11 +424,16 @@ pub fn stream_strategy(
         brain.shown(f, &shown);
         Ok((shown, jittered(ms)))
     })?;
+    let queried = match brain {
+        Brain::Scheduler(_, queried) => queried,
+        _ => Vec::new(),
+    };
     Ok(BudgetRun {
         video: video.id,
         start,
         run,
         detect,
+        queried,
     })
 }
 

@@ -40,7 +40,7 @@ pub struct BudgetScore {
 type Scored = (f64, f64, f64, usize, StreamTiming);
 
 /// Scores of runs, each with its video; every clock run's pairs are pooled.
-fn score_runs(log: &ReplayLog, runs: &[(&VideoLog, &BudgetRun)], fps: f64, iou: f32) -> Scored {
+pub(super) fn score_runs(classes: usize, runs: &[(&VideoLog, &BudgetRun)], fps: f64, iou: f32) -> Scored {
     let mut images: Vec<ImageResult> = Vec::new();
     let mut offline: Vec<ImageResult> = Vec::new();
     // a run streamed from frame `start` is scored on the frames it streamed
@@ -63,7 +63,7 @@ fn score_runs(log: &ReplayLog, runs: &[(&VideoLog, &BudgetRun)], fps: f64, iou: 
             });
         }
     }
-    let classes = log.classes.max(1);
+    let classes = classes.max(1);
     let (s50, s) = sap(&images, classes);
     let f1 = evaluate(
         &offline,
@@ -122,7 +122,7 @@ pub fn budget_scores(
                                     rs.iter().filter(|r| r.video == v.id).map(move |r| (*v, r))
                                 })
                                 .collect();
-                            score_runs(log, &sel, pol.config.fps, iou)
+                            score_runs(log.classes, &sel, pol.config.fps, iou)
                         })
                         .clone();
                     BudgetScore {

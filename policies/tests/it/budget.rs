@@ -5,7 +5,9 @@
 use super::fixture::log3;
 use frugal_data::Split;
 use frugal_policies::budget::{BudgetConfig, BudgetPolicies, VideoCache, train_budget};
-use frugal_policies::budget_eval::{BudgetStrategy, budget_scores, stream_all, stream_strategy};
+use frugal_policies::budget_eval::{
+    BudgetStrategy, budget_scores, search_tables, stream_all, stream_strategy,
+};
 use frugal_policies::eval::{EvalConfig, TRACK_POINTS, TrackerCost};
 use frugal_policies::replay::{Frames, VideoLog};
 use frugal_policies::stream::FrameRule;
@@ -489,4 +491,89 @@ fn the_streaming_reward_charges_a_late_detection_for_the_frames_it_missed() {
         streaming < shown - 0.2,
         "late: {streaming} vs on time: {shown}"
     );
+}
+
+/// The search on the clock keeps, per budget, a table that streams on the training
+/// videos at least as well as the learnt table and every fixed schedule the budget
+/// allows, taking only allowed actions; the figures it reports are the evaluation's
+/// own (the training videos streamed by `stream_all` and scored by `budget_scores`),
+/// and static + tracker becomes the best fixed schedule.
+#[test]
+fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fixed_one() {
+    let (log, frames, pol) = trained();
+    let mut policy = train(&log, &PolicyConfig::default()).unwrap();
+    policy.budget = Some(pol.clone());
+    let train_videos: Vec<&VideoLog> = log.split(Split::Train).collect();
+    assert!(train_videos.len() >= 2);
+    let thresholds = EvalConfig::default().thresholds();
+    let calls = std::sync::atomic::AtomicUsize::new(0);
+    let traces = search_tables(
+        &log,
+        &train_videos,
+        &frames,
+        COST,
+        &mut policy,
+        thresholds,
+        0.5,
+        &|| {
+            calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        },
+    )
+    .unwrap();
+    let searched = policy.budget.clone().unwrap();
+    assert_eq!(traces.len(), pol.config.budgets_ms.len());
+    assert_eq!(
+        calls.into_inner(),
+        traces.iter().map(|t| t.tables).sum::<usize>()
+    );
+    for (k, t) in traces.iter().enumerate() {
+        let allowed = searched.allowed(pol.config.budgets_ms[k]);
+        // the learnt table and one per allowed fixed action, at least
+        assert!(t.tables > allowed.len(), "{t:?}");
+        assert!(t.sap50 >= t.learnt_sap50 - 1e-12, "{t:?}");
+        assert!(t.sap50 >= t.best_fixed_sap50 - 1e-12, "{t:?}");
+        assert!(allowed.contains(&usize::from(t.best_fixed)), "{t:?}");
+        let p = &searched.policies[k];
+        assert_eq!(p.search.as_ref(), Some(t));
+        assert!(p.actions.iter().all(|&a| allowed.contains(&usize::from(a))));
+        assert_eq!(searched.static_tracker(k), usize::from(t.best_fixed));
+    }
+    // the figures are the evaluation's, streamed on the training videos
+    let bytes = frugal_policies::bundle::policy_bundle(&policy, thresholds).unwrap();
+    let runs = stream_all(&log, &train_videos, &frames, COST, &searched, &bytes, 0.5, &|| {})
+        .unwrap();
+    let scores = budget_scores(&log, &train_videos, &searched, &runs, 0.5);
+    for (k, t) in traces.iter().enumerate() {
+        let row = |s: BudgetStrategy| {
+            scores
+                .iter()
+                .find(|r| {
+                    r.scenario == "all"
+                        && r.strategy == s.name()
+                        && r.budget_ms == pol.config.budgets_ms[k]
+                })
+                .unwrap()
+        };
+        assert!((row(BudgetStrategy::Budget).sap50 - t.sap50).abs() < 1e-12, "{t:?}");
+        assert!(
+            (row(BudgetStrategy::Budget).timing.device_ms_per_frame - t.device_ms_per_frame).abs()
+                < 1e-9
+        );
+        // static + tracker runs the best fixed schedule from the first frame, the
+        // budget policy from its initial action: their figures differ by that start
+        assert!(row(BudgetStrategy::StaticTracker).sap50 > 0.0);
+    }
+    // with no sweeps, only the start is chosen: no state changed
+    let mut bare = policy.clone();
+    let mut p0 = pol.clone();
+    p0.config.search_rounds = 0;
+    bare.budget = Some(p0);
+    let traces0 =
+        search_tables(&log, &train_videos, &frames, COST, &mut bare, thresholds, 0.5, &|| {})
+            .unwrap();
+    for (t0, t) in traces0.iter().zip(&traces) {
+        assert_eq!(t0.changes, 0);
+        assert_eq!(t0.start, t.start);
+        assert!(t.sap50 >= t0.sap50 - 1e-12);
+    }
 }
