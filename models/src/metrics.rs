@@ -413,6 +413,38 @@ mod tests {
         assert_eq!(s.confusion[2][0], 1);
     }
 
+    /// Records of image sets concatenated in image order score as their union, with
+    /// ties between sets kept in image order, at every interpolation.
+    #[test]
+    fn records_of_parts_give_the_ap_of_the_whole() {
+        let images: Vec<ImageResult> = (0..7)
+            .map(|i| ImageResult {
+                detections: vec![
+                    det(0.0, 0.5 + 0.05 * (i % 3) as f32, 0),
+                    det(40.0 + i as f32, 0.6, 0),
+                    det(80.0, 0.7, 1),
+                ],
+                truth: (0..(i % 3)).map(|k| truth(40.0 * k as f32, 0)).collect(),
+                ignore: Vec::new(),
+            })
+            .collect();
+        for interp in [Interpolation::AllPoint, Interpolation::Coco101] {
+            for iou in [0.5, 0.75] {
+                let whole = average_precision(&images, 0, iou, interp);
+                let (mut n, mut recs) = (0, Vec::new());
+                for part in [&images[..2], &images[2..3], &images[3..]] {
+                    let (pn, pr) = class_records(part, 0, iou);
+                    n += pn;
+                    recs.extend(pr);
+                }
+                assert_eq!(ap_of_records(n, recs, interp), whole);
+                assert!(whole.is_some_and(|ap| ap > 0.0 && ap < 1.0), "{whole:?}");
+            }
+        }
+        // no truth of the class: no AP
+        assert_eq!(ap_of_records(0, vec![(0.9, false)], Interpolation::Coco101), None);
+    }
+
     #[test]
     fn wrong_class_is_confused_not_matched() {
         let images = vec![ImageResult {

@@ -162,8 +162,8 @@ impl Default for BudgetConfig {
             jitter: 0.05,
             phases: true,
             reward: BudgetReward::Shown,
-            search_rounds: 2,
-            search_min_gain: 0.002,
+            search_rounds: 16,
+            search_min_gain: 0.0,
         }
     }
 }

@@ -6,7 +6,7 @@ use super::fixture::log3;
 use frugal_data::Split;
 use frugal_policies::budget::{BudgetConfig, BudgetPolicies, VideoCache, train_budget};
 use frugal_policies::budget_eval::{
-    BudgetStrategy, budget_scores, search_tables, stream_all, stream_strategy,
+    BudgetStrategy, TuneSet, budget_scores, search_tables, stream_all, stream_strategy,
 };
 use frugal_policies::eval::{EvalConfig, TRACK_POINTS, TrackerCost};
 use frugal_policies::replay::{Frames, VideoLog};
@@ -507,10 +507,13 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
     assert!(train_videos.len() >= 2);
     let thresholds = EvalConfig::default().thresholds();
     let calls = std::sync::atomic::AtomicUsize::new(0);
+    let sets = [TuneSet {
+        log: &log,
+        frames: &frames,
+        videos: train_videos.clone(),
+    }];
     let traces = search_tables(
-        &log,
-        &train_videos,
-        &frames,
+        &sets,
         COST,
         &mut policy,
         thresholds,
@@ -568,9 +571,7 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
     let mut p0 = pol.clone();
     p0.config.search_rounds = 0;
     bare.budget = Some(p0);
-    let traces0 =
-        search_tables(&log, &train_videos, &frames, COST, &mut bare, thresholds, 0.5, &|| {})
-            .unwrap();
+    let traces0 = search_tables(&sets, COST, &mut bare, thresholds, 0.5, &|| {}).unwrap();
     for (t0, t) in traces0.iter().zip(&traces) {
         assert_eq!(t0.changes, 0);
         assert_eq!(t0.start, t.start);

@@ -209,6 +209,7 @@ impl Ctx {
             "budget" => json!({
                 "budget": c.budget,
                 "heldout": c.import.is_none().then_some(&c.heldout),
+                "tuning": c.import.is_none().then_some(&c.tuning),
                 "evaluation": c.evaluation,
             }),
             "bundle" => json!({
@@ -529,27 +530,43 @@ impl Ctx {
                 let held_cfg = self.run.join("config/heldout.json");
                 write_json(&held_cfg, &c.heldout)?;
                 let held_log = arg(&held.join("replay.json"));
-                let record = self.record_args(&held.join("data"), &held_log, "test", "val");
+                let tune = out.join("tuning");
+                let tune_cfg = self.run.join("config/tuning.json");
+                write_json(&tune_cfg, &c.tuning)?;
+                let tune_log = arg(&tune.join("replay.json"));
                 // written by the evaluation stage, which runs (or is skipped) first
                 let eval_cfg = self.run.join("config/evaluation.json");
-                vec![
-                    self.frugal(&self.quiet(vec![
+                let mut cmds = Vec::new();
+                for (gen_cfg, dir, log) in [(&held_cfg, &held, &held_log), (&tune_cfg, &tune, &tune_log)]
+                {
+                    cmds.push(self.frugal(&self.quiet(vec![
                         s("data"),
                         s("generate"),
                         s("--config"),
-                        arg(&held_cfg),
+                        arg(gen_cfg),
                         s("--out"),
-                        arg(&held.join("data")),
-                    ]))?,
-                    self.frugal(&self.quiet(record))?,
+                        arg(&dir.join("data")),
+                    ]))?);
+                    let record = self.record_args(&dir.join("data"), log, "test", "val");
+                    cmds.push(self.frugal(&self.quiet(record))?);
+                }
+                cmds.push(
                     self.frugal(
                         &[
                             self.policy_args("budget", out, cfg()),
-                            vec![s("--eval-config"), arg(&eval_cfg), s("--heldout"), held_log],
+                            vec![
+                                s("--eval-config"),
+                                arg(&eval_cfg),
+                                s("--heldout"),
+                                held_log,
+                                s("--tune"),
+                                tune_log,
+                            ],
                         ]
                         .concat(),
                     )?,
-                ]
+                );
+                cmds
             }
             "bundle" => {
                 let e = &c.evaluation;
