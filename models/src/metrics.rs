@@ -442,7 +442,10 @@ mod tests {
             }
         }
         // no truth of the class: no AP
-        assert_eq!(ap_of_records(0, vec![(0.9, false)], Interpolation::Coco101), None);
+        assert_eq!(
+            ap_of_records(0, vec![(0.9, false)], Interpolation::Coco101),
+            None
+        );
     }
 
     #[test]

@@ -6,8 +6,8 @@ use anyhow::Context;
 use frugal_data::{Dataset, Split};
 use frugal_policies::budget::{BudgetConfig, train_budget};
 use frugal_policies::budget_eval::{
-    BudgetScore, budget_csv, budget_margins, budget_scores, budget_table, plot_budget,
-    TuneSet, search_tables, stream_all,
+    BudgetScore, TuneSet, budget_csv, budget_margins, budget_scores, budget_table, plot_budget,
+    search_tables, stream_all,
 };
 use frugal_policies::eval::{EvalConfig, Strategy, run_all};
 use frugal_policies::replay::{DatasetFrames, VideoLog};
@@ -71,17 +71,35 @@ fn score_log(
     Ok(scores)
 }
 
+/// The files `frugal policy budget` reads and writes.
+pub struct Files<'a> {
+    /// The replay log (training videos teach, test videos score).
+    pub log: &'a Path,
+    /// The paper policy to attach the budget tables to.
+    pub policy: &'a Path,
+    /// Output folder.
+    pub out: &'a Path,
+    /// The log's dataset folder, when not the one it records.
+    pub data: Option<&'a Path>,
+    /// Budget settings.
+    pub config: Option<&'a Path>,
+    /// Held-out replay logs, scored.
+    pub heldout: &'a [PathBuf],
+    /// Tuning replay logs, the tables chosen on them.
+    pub tune: &'a [PathBuf],
+}
+
 /// Run `frugal policy budget`.
-pub fn run(
-    log_path: &Path,
-    policy_path: &Path,
-    out: &Path,
-    data: Option<&Path>,
-    config: Option<&Path>,
-    heldout: &[PathBuf],
-    tune: &[PathBuf],
-    eval: &EvalConfig,
-) -> anyhow::Result<()> {
+pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
+    let Files {
+        log: log_path,
+        policy: policy_path,
+        out,
+        data,
+        config,
+        heldout,
+        tune,
+    } = *files;
     let log = ReplayLog::load(log_path)?;
     let mut policy = TrainedPolicy::load(policy_path)?;
     let cfg: BudgetConfig = match config {
@@ -147,14 +165,9 @@ pub fn run(
         });
     }
     let pb = crate::features::counter(false, "tables streamed on the tuning videos");
-    let traces = search_tables(
-        &sets,
-        cost,
-        &mut policy,
-        eval.thresholds(),
-        0.5,
-        &|| pb.inc(1),
-    )?;
+    let traces = search_tables(&sets, cost, &mut policy, eval.thresholds(), 0.5, &|| {
+        pb.inc(1)
+    })?;
     pb.finish_and_clear();
     for (b, t) in cfg.budgets_ms.iter().zip(&traces) {
         println!(

@@ -422,13 +422,15 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
             Ok(())
         }
         PolicyCommand::Budget(a) => crate::budget::run(
-            &a.log,
-            &a.policy,
-            &a.out,
-            a.data.as_deref(),
-            a.config.as_deref(),
-            &a.heldout,
-            &a.tune,
+            &crate::budget::Files {
+                log: &a.log,
+                policy: &a.policy,
+                out: &a.out,
+                data: a.data.as_deref(),
+                config: a.config.as_deref(),
+                heldout: &a.heldout,
+                tune: &a.tune,
+            },
             &read_eval_config(a.eval_config.as_deref())?,
         ),
         PolicyCommand::Eval(a) => {

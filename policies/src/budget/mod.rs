@@ -415,7 +415,12 @@ impl BudgetPolicies {
         if let Some(t) = self.policies.get(k).and_then(|p| p.search.as_ref()) {
             return usize::from(t.best_fixed);
         }
-        let b = self.config.budgets_ms.get(k).copied().unwrap_or(f64::INFINITY);
+        let b = self
+            .config
+            .budgets_ms
+            .get(k)
+            .copied()
+            .unwrap_or(f64::INFINITY);
         let st = self.static_under(b);
         self.config.action(st, self.period_under(st, b))
     }

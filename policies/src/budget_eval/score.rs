@@ -40,7 +40,12 @@ pub struct BudgetScore {
 type Scored = (f64, f64, f64, usize, StreamTiming);
 
 /// Scores of runs, each with its video; every clock run's pairs are pooled.
-pub(super) fn score_runs(classes: usize, runs: &[(&VideoLog, &BudgetRun)], fps: f64, iou: f32) -> Scored {
+pub(super) fn score_runs(
+    classes: usize,
+    runs: &[(&VideoLog, &BudgetRun)],
+    fps: f64,
+    iou: f32,
+) -> Scored {
     let mut images: Vec<ImageResult> = Vec::new();
     let mut offline: Vec<ImageResult> = Vec::new();
     // a run streamed from frame `start` is scored on the frames it streamed

@@ -25,15 +25,15 @@
 
 use super::score::score_runs;
 use super::{BudgetRun, BudgetStrategy, stream_strategy};
-use crate::scoring::ground_truth;
-use crate::stream::streaming_images;
-use frugal_models::metrics::{Interpolation, ap_of_records, class_records};
-use frugal_runtime::ClassId;
 use crate::TrainedPolicy;
 use crate::budget::{BudgetConfig, VideoCache};
 use crate::error::{PolicyError, Result};
 use crate::replay::{Frames, MemoryFrames, ReplayLog, VideoLog};
 use crate::scoring::TrackerCost;
+use crate::scoring::ground_truth;
+use crate::stream::streaming_images;
+use frugal_models::metrics::{Interpolation, ap_of_records, class_records};
+use frugal_runtime::ClassId;
 use frugal_runtime::bundle::Thresholds;
 use serde::{Deserialize, Serialize};
 use std::sync::Mutex;
@@ -184,7 +184,11 @@ impl Clock<'_> {
         let (_, _, f1, _, timing) = score_runs(self.classes, &pairs.concat(), fps, self.iou);
         let mut per_video: Vec<f64> = pairs
             .iter()
-            .map(|p| score_runs(self.classes, p, fps, self.iou).4.device_ms_per_frame)
+            .map(|p| {
+                score_runs(self.classes, p, fps, self.iou)
+                    .4
+                    .device_ms_per_frame
+            })
             .collect();
         per_video.sort_by(f64::total_cmp);
         Ok(Kept {
@@ -229,7 +233,12 @@ impl Clock<'_> {
             .filter_map(|c| {
                 let mut n = 0;
                 let mut recs = Vec::new();
-                for r in runs.iter().enumerate().filter(|(i, _)| keep(*i)).flat_map(|(_, rs)| rs) {
+                for r in runs
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| keep(*i))
+                    .flat_map(|(_, rs)| rs)
+                {
                     n += r.records[c].0;
                     recs.extend_from_slice(&r.records[c].1);
                 }
@@ -251,7 +260,11 @@ impl Clock<'_> {
         Figures {
             sap50: self.sap50(runs, |_| true),
             halves: [0, 1].map(|h| self.sap50(runs, |i| i % 2 == h)),
-            ms_per_frame: if frames > 0 { busy / frames as f64 } else { 0.0 },
+            ms_per_frame: if frames > 0 {
+                busy / frames as f64
+            } else {
+                0.0
+            },
         }
     }
 
@@ -293,7 +306,13 @@ pub fn search_tables(
     // every set's videos in id order, one set after the other: the halves alternate
     let mut videos: Vec<(&ReplayLog, &dyn Frames, &VideoLog)> = Vec::new();
     for set in sets {
-        if set.log.variants.iter().map(|v| &v.name).ne(pol.variants.iter()) {
+        if set
+            .log
+            .variants
+            .iter()
+            .map(|v| &v.name)
+            .ne(pol.variants.iter())
+        {
             return Err(PolicyError::invalid(
                 &set.log.dataset,
                 "variants",

@@ -500,7 +500,9 @@ fn the_streaming_reward_charges_a_late_detection_for_the_frames_it_missed() {
 /// and static + tracker becomes the best fixed schedule.
 #[test]
 fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fixed_one() {
-    let (log, frames, pol) = trained();
+    let (log, frames, mut pol) = trained();
+    // two sweeps: enough to change states, cheap enough for a test
+    pol.config.search_rounds = 2;
     let mut policy = train(&log, &PolicyConfig::default()).unwrap();
     policy.budget = Some(pol.clone());
     let train_videos: Vec<&VideoLog> = log.split(Split::Train).collect();
@@ -512,16 +514,9 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
         frames: &frames,
         videos: train_videos.clone(),
     }];
-    let traces = search_tables(
-        &sets,
-        COST,
-        &mut policy,
-        thresholds,
-        0.5,
-        &|| {
-            calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        },
-    )
+    let traces = search_tables(&sets, COST, &mut policy, thresholds, 0.5, &|| {
+        calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    })
     .unwrap();
     let searched = policy.budget.clone().unwrap();
     assert_eq!(traces.len(), pol.config.budgets_ms.len());
@@ -543,8 +538,17 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
     }
     // the figures are the evaluation's, streamed on the training videos
     let bytes = frugal_policies::bundle::policy_bundle(&policy, thresholds).unwrap();
-    let runs = stream_all(&log, &train_videos, &frames, COST, &searched, &bytes, 0.5, &|| {})
-        .unwrap();
+    let runs = stream_all(
+        &log,
+        &train_videos,
+        &frames,
+        COST,
+        &searched,
+        &bytes,
+        0.5,
+        &|| {},
+    )
+    .unwrap();
     let scores = budget_scores(&log, &train_videos, &searched, &runs, 0.5);
     for (k, t) in traces.iter().enumerate() {
         let row = |s: BudgetStrategy| {
@@ -557,7 +561,10 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
                 })
                 .unwrap()
         };
-        assert!((row(BudgetStrategy::Budget).sap50 - t.sap50).abs() < 1e-12, "{t:?}");
+        assert!(
+            (row(BudgetStrategy::Budget).sap50 - t.sap50).abs() < 1e-12,
+            "{t:?}"
+        );
         assert!(
             (row(BudgetStrategy::Budget).timing.device_ms_per_frame - t.device_ms_per_frame).abs()
                 < 1e-9

@@ -776,6 +776,22 @@ mod tests {
             e.contains("[data]") && e.contains("frame size 0x270"),
             "{e}"
         );
+        // the tables must not be chosen on the videos that judge them, nor on the
+        // training data's seed
+        let e = load("[tuning]\nseed = 2031\n").unwrap_err().to_string();
+        assert!(
+            e.contains("tuning.seed") && e.contains("[heldout]'s seed"),
+            "{e}"
+        );
+        let e = load("[tuning]\nseed = 2026\n").unwrap_err().to_string();
+        assert!(
+            e.contains("tuning.seed") && e.contains("[data]'s seed"),
+            "{e}"
+        );
+        let e = load("[tuning]\nwidth = 320\nheight = 180\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("tuning.width") && e.contains("480×270"), "{e}");
     }
 
     #[test]

@@ -537,7 +537,8 @@ impl Ctx {
                 // written by the evaluation stage, which runs (or is skipped) first
                 let eval_cfg = self.run.join("config/evaluation.json");
                 let mut cmds = Vec::new();
-                for (gen_cfg, dir, log) in [(&held_cfg, &held, &held_log), (&tune_cfg, &tune, &tune_log)]
+                for (gen_cfg, dir, log) in
+                    [(&held_cfg, &held, &held_log), (&tune_cfg, &tune, &tune_log)]
                 {
                     cmds.push(self.frugal(&self.quiet(vec![
                         s("data"),
