@@ -111,6 +111,19 @@ pub struct BudgetConfig {
     /// Least gain of sAP@0.5 (0–1) over the training videos for the search to keep a
     /// change.
     pub search_min_gain: f64,
+    /// What one move of the search sets ([`SearchLevel`]).
+    pub search_level: SearchLevel,
+}
+
+/// What one move of the search on the clock sets.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SearchLevel {
+    /// One action for every state of one content state (27 moves per action).
+    #[default]
+    Content,
+    /// One action for one state.
+    State,
 }
 
 /// What a segment of the semi-MDP earns per frame.
@@ -164,6 +177,7 @@ impl Default for BudgetConfig {
             reward: BudgetReward::Shown,
             search_rounds: 16,
             search_min_gain: 0.0,
+            search_level: SearchLevel::Content,
         }
     }
 }

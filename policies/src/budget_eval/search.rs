@@ -1,8 +1,8 @@
 //! Choosing each budget's table on the clock: the learnt table and every fixed
-//! schedule the budget allows are streamed on the training videos exactly as the
-//! evaluation streams the test videos, the best by streaming AP is kept, and its
-//! most-visited states are then changed one at a time while that pays on both halves
-//! of the training videos.
+//! schedule the budget allows are streamed on the tuning videos exactly as the
+//! evaluation streams the test videos, the best by streaming AP is kept, and then one
+//! content state's action at a time is changed (most looked-up first) while that pays
+//! on both halves of the tuning videos.
 //!
 //! # Why
 //!
@@ -12,21 +12,25 @@
 //! later frame. Streamed on the very videos they were learnt from, those tables trailed
 //! the best fixed schedule by about 7 sAP@0.5 points at 33 and 16 ms. The search ranks
 //! tables by the figure they are judged by, on the clock they are judged on, so that a
-//! budget's table is never worse on its training videos than the best fixed schedule.
+//! budget's table is never worse on its tuning videos than the best fixed schedule.
 //!
 //! # Guarding against fitting noise
 //!
-//! A change of one state's action is kept only when it raises sAP@0.5 over every
-//! training video by more than [`BudgetConfig::search_min_gain`] and lowers it on
-//! neither half of them (videos alternately assigned by id): a change that only one
-//! half of the videos likes is noise as far as the other half can tell. Only states
-//! the current table actually visits on the training clock runs are tried, most visited
-//! first, for at most [`BudgetConfig::search_rounds`] sweeps.
+//! A move is kept only when it raises sAP@0.5 over every tuning video by more than
+//! [`BudgetConfig::search_min_gain`] and lowers it on neither half of them (videos
+//! alternately assigned, in id order): a change that only one half of the videos likes
+//! is noise as far as the other half can tell. A move sets one action for every state
+//! of one content state ([`crate::budget::SearchLevel::Content`], 27 groups: a
+//! behaviour per kind of scene, whatever the confidence and current variant), or for
+//! one state alone ([`crate::budget::SearchLevel::State`]), which fitted the tuning
+//! videos better and new videos worse. Only groups the current table looks up on the
+//! tuning clock runs are tried, most looked-up first, for at most
+//! [`BudgetConfig::search_rounds`] sweeps.
 
 use super::score::score_runs;
 use super::{BudgetRun, BudgetStrategy, stream_strategy};
 use crate::TrainedPolicy;
-use crate::budget::{BudgetConfig, VideoCache};
+use crate::budget::{BudgetConfig, SearchLevel, VideoCache};
 use crate::error::{PolicyError, Result};
 use crate::replay::{Frames, MemoryFrames, ReplayLog, VideoLog};
 use crate::scoring::TrackerCost;
@@ -35,6 +39,7 @@ use crate::stream::streaming_images;
 use frugal_models::metrics::{Interpolation, ap_of_records, class_records};
 use frugal_runtime::ClassId;
 use frugal_runtime::bundle::Thresholds;
+use frugal_runtime::schedule::CONTENT_STATES;
 use serde::{Deserialize, Serialize};
 use std::sync::Mutex;
 
@@ -56,7 +61,8 @@ pub struct SearchTrace {
     pub halves_sap50: [f64; 2],
     /// Device ms per frame of the table kept on the training clock runs.
     pub device_ms_per_frame: f64,
-    /// States whose action the search changed (after the start).
+    /// Moves the search kept after the start ([`crate::budget::SearchLevel`]: one
+    /// content state's action, or one state's).
     pub changes: usize,
     /// Tables streamed.
     pub tables: usize,
@@ -398,6 +404,14 @@ pub fn search_tables(
         }
         let (start, mut table, mut runs, mut fig) = best;
         let mut changes = 0usize;
+        // the moves: one action for a group of states (every state of one content
+        // state, or one state alone)
+        let groups: Vec<Vec<usize>> = match cfg.search_level {
+            SearchLevel::Content => (0..CONTENT_STATES)
+                .map(|c| (0..states).filter(|s| s % CONTENT_STATES == c).collect())
+                .collect(),
+            SearchLevel::State => (0..states).map(|s| vec![s]).collect(),
+        };
         for _ in 0..cfg.search_rounds {
             let mut visits = vec![0u64; states];
             for r in runs.iter().flatten() {
@@ -407,22 +421,32 @@ pub fn search_tables(
                     }
                 }
             }
-            let mut order: Vec<usize> = (0..states).filter(|&s| visits[s] > 0).collect();
-            order.sort_by_key(|&s| std::cmp::Reverse(visits[s]));
+            let group_visits: Vec<u64> = groups
+                .iter()
+                .map(|g| g.iter().map(|&s| visits[s]).sum())
+                .collect();
+            let mut order: Vec<usize> =
+                (0..groups.len()).filter(|&g| group_visits[g] > 0).collect();
+            order.sort_by_key(|&g| std::cmp::Reverse(group_visits[g]));
             let mut changed = false;
-            for s in order {
+            for g in order {
+                let group = &groups[g];
                 for &a in &allowed {
-                    if usize::from(table[s]) == a {
+                    if group.iter().all(|&s| usize::from(table[s]) == a) {
                         continue;
                     }
                     let mut cand = table.clone();
-                    cand[s] = a as u16;
-                    // only the runs that look state `s` up can change
+                    for &s in group {
+                        cand[s] = a as u16;
+                    }
+                    // only the runs that look one of the group's states up can change
                     let which: Vec<Vec<u32>> = runs
                         .iter()
                         .map(|rs| {
                             (0..rs.len() as u32)
-                                .filter(|&c| rs[c as usize].queries(s as u32))
+                                .filter(|&c| {
+                                    group.iter().any(|&s| rs[c as usize].queries(s as u32))
+                                })
                                 .collect()
                         })
                         .collect();

@@ -4,7 +4,9 @@
 
 use super::fixture::log3;
 use frugal_data::Split;
-use frugal_policies::budget::{BudgetConfig, BudgetPolicies, VideoCache, train_budget};
+use frugal_policies::budget::{
+    BudgetConfig, BudgetPolicies, SearchLevel, VideoCache, train_budget,
+};
 use frugal_policies::budget_eval::{
     BudgetStrategy, TuneSet, budget_scores, search_tables, stream_all, stream_strategy,
 };
@@ -583,5 +585,16 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
         assert_eq!(t0.changes, 0);
         assert_eq!(t0.start, t.start);
         assert!(t.sap50 >= t0.sap50 - 1e-12);
+    }
+    // one state per move: the same guarantees
+    let mut fine = policy.clone();
+    let mut p1 = pol.clone();
+    p1.config.search_rounds = 1;
+    p1.config.search_level = SearchLevel::State;
+    fine.budget = Some(p1);
+    let traces1 = search_tables(&sets, COST, &mut fine, thresholds, 0.5, &|| {}).unwrap();
+    for (t1, t0) in traces1.iter().zip(&traces0) {
+        assert_eq!(t1.start, t0.start);
+        assert!(t1.sap50 >= t0.sap50 - 1e-12, "{t1:?}");
     }
 }
