@@ -106,9 +106,9 @@ pub struct BudgetConfig {
     pub reward: BudgetReward,
     /// Sweeps of the search on the clock over the states a table visits
     /// ([`crate::budget_eval::search_tables`]); 0: the start alone (the learnt table or
-    /// the best fixed schedule, whichever streams better on the training videos).
+    /// the best fixed schedule, whichever streams better on the tuning videos).
     pub search_rounds: u32,
-    /// Least gain of sAP@0.5 (0–1) over the training videos for the search to keep a
+    /// Least gain of sAP@0.5 (0–1) over the tuning videos for the search to keep a
     /// change.
     pub search_min_gain: f64,
     /// What one move of the search sets ([`SearchLevel`]).
@@ -421,7 +421,7 @@ impl BudgetPolicies {
     }
 
     /// Static + tracker's fixed action under budget `k`: the fixed schedule that streamed
-    /// best on the training videos when the search on the clock ran
+    /// best on the tuning videos when the search on the clock ran
     /// ([`crate::budget_eval::SearchTrace::best_fixed`]), else the best static variant
     /// ([`BudgetPolicies::static_under`]) at the shortest period that fits
     /// ([`BudgetPolicies::period_under`]).

@@ -48,18 +48,18 @@ use std::sync::Mutex;
 pub struct SearchTrace {
     /// The table it started from: `learnt`, or `fixed <variant> every <N>`.
     pub start: String,
-    /// sAP@0.5 of the learnt (Lagrangian) table on the training clock runs.
+    /// sAP@0.5 of the learnt (Lagrangian) table on the tuning clock runs.
     pub learnt_sap50: f64,
     /// The fixed action (variant, every `N`) the budget allows that streams best on
-    /// the training videos: static + tracker's schedule.
+    /// the tuning videos: static + tracker's schedule.
     pub best_fixed: u16,
     /// Its sAP@0.5, same runs.
     pub best_fixed_sap50: f64,
     /// sAP@0.5 of the table kept, same runs.
     pub sap50: f64,
-    /// sAP@0.5 of the table kept on each half of the training videos.
+    /// sAP@0.5 of the table kept on each half of the tuning videos.
     pub halves_sap50: [f64; 2],
-    /// Device ms per frame of the table kept on the training clock runs.
+    /// Device ms per frame of the table kept on the tuning clock runs.
     pub device_ms_per_frame: f64,
     /// Moves the search kept after the start ([`crate::budget::SearchLevel`]: one
     /// content state's action, or one state's).
