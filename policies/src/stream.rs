@@ -206,7 +206,8 @@ pub struct StreamTiming {
     pub device_ms_per_frame: f64,
 }
 
-fn nearest_rank(sorted: &[f64], q: f64) -> f64 {
+/// The nearest-rank `q` quantile of `sorted` (ascending); 0 when it is empty.
+pub(crate) fn nearest_rank(sorted: &[f64], q: f64) -> f64 {
     if sorted.is_empty() {
         return 0.0;
     }

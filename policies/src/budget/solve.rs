@@ -229,10 +229,7 @@ fn rollout(
         per_video.push(vms / vframes.max(1) as f64);
     }
     per_video.sort_by(f64::total_cmp);
-    let p95 = per_video
-        .get(((0.95 * per_video.len() as f64).ceil() as usize).clamp(1, per_video.len().max(1)) - 1)
-        .copied()
-        .unwrap_or(0.0);
+    let p95 = crate::stream::nearest_rank(&per_video, 0.95);
     (ms / frames.max(1) as f64, p95, f1 / frames.max(1) as f64)
 }
 

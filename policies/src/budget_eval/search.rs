@@ -35,7 +35,7 @@ use crate::error::{PolicyError, Result};
 use crate::replay::{Frames, MemoryFrames, ReplayLog, VideoLog};
 use crate::scoring::TrackerCost;
 use crate::scoring::ground_truth;
-use crate::stream::streaming_images;
+use crate::stream::{nearest_rank, streaming_images};
 use frugal_models::metrics::{Interpolation, ap_of_records, class_records};
 use frugal_runtime::ClassId;
 use frugal_runtime::bundle::Thresholds;
@@ -119,13 +119,6 @@ struct Clock<'a> {
 /// Runs `[video][clock run]`.
 type Runs = Vec<Vec<RunFig>>;
 
-/// The evaluation figures of the table kept.
-struct Kept {
-    ms_per_frame: f64,
-    p95_ms: f64,
-    f1: f64,
-}
-
 impl Clock<'_> {
     /// Streams budget `k`'s table of `policy` over the clock runs `which[video]` of
     /// every video, each run handed to `keep` with its video and arrival times.
@@ -175,36 +168,19 @@ impl Clock<'_> {
             .collect()
     }
 
-    /// The figures of the table `policy` holds for budget `k`, every run streamed:
-    /// device ms per frame, its 95th percentile over videos, and F1.
-    fn kept(&self, policy: &TrainedPolicy, k: usize, clock_runs: u32) -> Result<Kept> {
+    /// F1 of the outputs of the table `policy` holds for budget `k` against their own
+    /// frames (no clock), every run streamed again: the match records keep no F1.
+    fn offline_f1(&self, policy: &TrainedPolicy, k: usize, clock_runs: u32) -> Result<f64> {
         let which = vec![(0..clock_runs).collect::<Vec<u32>>(); self.videos.len()];
         let runs = self.stream(policy, k, &which, |_, _, r| r)?;
         let fps = policy.budget.as_ref().ok_or_else(no_tables)?.config.fps;
-        let pairs: Vec<Vec<(&VideoLog, &BudgetRun)>> = self
+        let pairs: Vec<(&VideoLog, &BudgetRun)> = self
             .videos
             .iter()
             .zip(&runs)
-            .map(|((_, v, _, _), rs)| rs.iter().map(|(_, r)| (*v, r)).collect())
+            .flat_map(|((_, v, _, _), rs)| rs.iter().map(move |(_, r)| (*v, r)))
             .collect();
-        let (_, _, f1, _, timing) = score_runs(self.classes, &pairs.concat(), fps, self.iou);
-        let mut per_video: Vec<f64> = pairs
-            .iter()
-            .map(|p| {
-                score_runs(self.classes, p, fps, self.iou)
-                    .4
-                    .device_ms_per_frame
-            })
-            .collect();
-        per_video.sort_by(f64::total_cmp);
-        Ok(Kept {
-            ms_per_frame: timing.device_ms_per_frame,
-            p95_ms: per_video
-                .get(((0.95 * per_video.len() as f64).ceil() as usize).max(1) - 1)
-                .copied()
-                .unwrap_or(0.0),
-            f1,
-        })
+        Ok(score_runs(self.classes, &pairs, fps, self.iou).2)
     }
 
     fn run_fig(&self, v: &VideoLog, arr: &[f64], r: &BudgetRun) -> RunFig {
@@ -259,10 +235,7 @@ impl Clock<'_> {
     }
 
     fn figures(&self, runs: &Runs) -> Figures {
-        let (busy, frames) = runs
-            .iter()
-            .flatten()
-            .fold((0.0, 0usize), |(b, f), r| (b + r.busy_ms, f + r.frames));
+        let (busy, frames) = busy_frames(runs.iter().flatten());
         Figures {
             sap50: self.sap50(runs, |_| true),
             halves: [0, 1].map(|h| self.sap50(runs, |i| i % 2 == h)),
@@ -283,6 +256,12 @@ impl Clock<'_> {
             .map(|rs| rs.into_iter().map(|(_, r)| r).collect())
             .collect())
     }
+}
+
+/// Device compute (ms) and frames of video time of `runs`.
+fn busy_frames<'r>(runs: impl IntoIterator<Item = &'r RunFig>) -> (f64, usize) {
+    runs.into_iter()
+        .fold((0.0, 0), |(b, f), r| (b + r.busy_ms, f + r.frames))
 }
 
 fn no_tables() -> PolicyError {
@@ -431,17 +410,9 @@ pub fn search_tables(
             let mut changed = false;
             for g in order {
                 let group = &groups[g];
-                for &a in &allowed {
-                    if group.iter().all(|&s| usize::from(table[s]) == a) {
-                        continue;
-                    }
-                    let mut cand = table.clone();
-                    for &s in group {
-                        cand[s] = a as u16;
-                    }
-                    // only the runs that look one of the group's states up can change
-                    let which: Vec<Vec<u32>> = runs
-                        .iter()
+                // only the runs that look one of the group's states up can change
+                let looking_up = |runs: &Runs| -> Vec<Vec<u32>> {
+                    runs.iter()
                         .map(|rs| {
                             (0..rs.len() as u32)
                                 .filter(|&c| {
@@ -449,9 +420,19 @@ pub fn search_tables(
                                 })
                                 .collect()
                         })
-                        .collect();
+                        .collect()
+                };
+                let mut which = looking_up(&runs);
+                for &a in &allowed {
                     if which.iter().all(Vec::is_empty) {
                         break; // no longer visited since an earlier change
+                    }
+                    if group.iter().all(|&s| usize::from(table[s]) == a) {
+                        continue;
+                    }
+                    let mut cand = table.clone();
+                    for &s in group {
+                        cand[s] = a as u16;
                     }
                     set(policy, &cand);
                     tables += 1;
@@ -471,6 +452,7 @@ pub fn search_tables(
                         fig = f;
                         changes += 1;
                         changed = true;
+                        which = looking_up(&runs);
                     }
                 }
             }
@@ -480,13 +462,22 @@ pub fn search_tables(
         }
         // the table kept, streamed in full: its evaluation figures
         set(policy, &table);
-        let kept = clock.kept(policy, k, cfg.clock_runs)?;
+        let f1 = clock.offline_f1(policy, k, cfg.clock_runs)?;
+        // device ms per frame of each video over its clock runs
+        let mut per_video: Vec<f64> = runs
+            .iter()
+            .map(|rs| {
+                let (busy, frames) = busy_frames(rs);
+                busy / frames.max(1) as f64
+            })
+            .collect();
+        per_video.sort_by(f64::total_cmp);
         if let Some(b) = policy.budget.as_mut() {
             let p = &mut b.policies[k];
             p.actions = table;
-            p.expected_ms = kept.ms_per_frame;
-            p.p95_ms = kept.p95_ms;
-            p.train_f1 = kept.f1;
+            p.expected_ms = fig.ms_per_frame;
+            p.p95_ms = nearest_rank(&per_video, 0.95);
+            p.train_f1 = f1;
         }
         traces.push(SearchTrace {
             start,

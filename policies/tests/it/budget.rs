@@ -47,6 +47,18 @@ fn trained() -> (
     (log, frames, pol)
 }
 
+/// The paper policy of `log` with `pol`'s budget tables attached, and its bundle.
+fn bundled(
+    log: &frugal_policies::ReplayLog,
+    pol: &BudgetPolicies,
+) -> (frugal_policies::TrainedPolicy, Vec<u8>) {
+    let mut policy = train(log, &PolicyConfig::default()).unwrap();
+    policy.budget = Some(pol.clone());
+    let bytes = frugal_policies::bundle::policy_bundle(&policy, EvalConfig::default().thresholds())
+        .unwrap();
+    (policy, bytes)
+}
+
 #[test]
 fn the_budget_policy_never_takes_an_action_over_budget_while_one_fits() {
     let (_, _, pol) = trained();
@@ -287,10 +299,7 @@ fn a_fifteen_percent_change_of_every_latency_moves_the_budget_policy_little() {
 #[test]
 fn a_shared_tracking_cache_changes_no_stream() {
     let (log, frames, pol) = trained();
-    let mut policy = train(&log, &PolicyConfig::default()).unwrap();
-    policy.budget = Some(pol.clone());
-    let bytes = frugal_policies::bundle::policy_bundle(&policy, EvalConfig::default().thresholds())
-        .unwrap();
+    let (_, bytes) = bundled(&log, &pol);
     let mut hits = 0;
     for video in log.split(Split::Test) {
         let shared = VideoCache::default();
@@ -328,10 +337,7 @@ fn a_shared_tracking_cache_changes_no_stream() {
 fn each_clock_run_starts_every_strategy_at_its_own_phase() {
     let (log, frames, mut pol) = trained();
     pol.config.clock_runs = 3;
-    let mut policy = train(&log, &PolicyConfig::default()).unwrap();
-    policy.budget = Some(pol.clone());
-    let bytes = frugal_policies::bundle::policy_bundle(&policy, EvalConfig::default().thresholds())
-        .unwrap();
+    let (_, bytes) = bundled(&log, &pol);
     let video = log.split(Split::Test).next().unwrap();
     let cache = VideoCache::default();
     let longest = *pol.config.periods.last().unwrap();
@@ -410,10 +416,7 @@ fn strategies_that_behave_alike_under_two_budgets_stream_alike() {
         pol.behaviour(0, BudgetStrategy::StaticTracker),
         pol.behaviour(2, BudgetStrategy::StaticTracker)
     );
-    let mut policy = train(&log, &PolicyConfig::default()).unwrap();
-    policy.budget = Some(twin.clone());
-    let bytes = frugal_policies::bundle::policy_bundle(&policy, EvalConfig::default().thresholds())
-        .unwrap();
+    let (_, bytes) = bundled(&log, &twin);
     let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
     let runs = stream_all(&log, &videos, &frames, COST, &twin, &bytes, 0.5, &|| {}).unwrap();
     for s in BudgetStrategy::ALL {
@@ -505,8 +508,7 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
     let (log, frames, mut pol) = trained();
     // two sweeps: enough to change states, cheap enough for a test
     pol.config.search_rounds = 2;
-    let mut policy = train(&log, &PolicyConfig::default()).unwrap();
-    policy.budget = Some(pol.clone());
+    let (mut policy, _) = bundled(&log, &pol);
     let train_videos: Vec<&VideoLog> = log.split(Split::Train).collect();
     assert!(train_videos.len() >= 2);
     let thresholds = EvalConfig::default().thresholds();
