@@ -138,6 +138,64 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
             .count();
         assert_eq!(rows, 3, "{strategy}: one overall row per budget");
     }
+    // the tables scored as they are, with the tracker cost they were made with: the
+    // stage's own figures, strategy by strategy, on the same test and held-out videos
+    let kept = tmp.path().join("kept");
+    let (replay, evaluation, held_log) = (
+        run.join("replay/replay.json"),
+        run.join("config/evaluation.json"),
+        run.join("budget/heldout/replay.json"),
+    );
+    let keep_args = |policy: &Path, extra: &[&str]| -> Result<(), String> {
+        let mut args = vec![
+            "policy",
+            "budget",
+            "--keep-tables",
+            "--log",
+            p(&replay),
+            "--policy",
+            p(policy),
+            "--out",
+            p(&kept),
+            "--eval-config",
+            p(&evaluation),
+            "--heldout",
+            p(&held_log),
+        ];
+        args.extend_from_slice(extra);
+        frugal(&args)
+    };
+    keep_args(&run.join("budget/policy.json"), &[]).unwrap();
+    for (stage, again) in [
+        ("budget/budget.json", "budget.json"),
+        ("budget/heldout-1/budget.json", "heldout-1/budget.json"),
+    ] {
+        let (a, b) = (json(&run.join(stage)), json(&kept.join(again)));
+        let (a, b) = (a.as_array().unwrap(), b.as_array().unwrap());
+        assert_eq!(a.len(), b.len(), "{stage}");
+        for (x, y) in a.iter().zip(b) {
+            for key in ["budget_ms", "scenario", "strategy", "detections", "timing"] {
+                assert_eq!(x[key], y[key], "{stage}: {key}");
+            }
+            let (sx, sy) = (x["sap50"].as_f64().unwrap(), y["sap50"].as_f64().unwrap());
+            assert!((sx - sy).abs() < 1e-12, "{stage}: {x} vs {y}");
+        }
+    }
+    // settings that would change the tables, and a policy without tables, are refused
+    let e = keep_args(
+        &run.join("budget/policy.json"),
+        &["--config", p(&run.join("config/budget.json"))],
+    )
+    .unwrap_err();
+    assert!(
+        e.contains("--keep-tables") && e.contains("policy.json"),
+        "{e}"
+    );
+    let e = keep_args(&run.join("policy/policy.json"), &[]).unwrap_err();
+    assert!(
+        e.contains("policy/policy.json") && e.contains("holds no budget tables"),
+        "{e}"
+    );
     let figures = json(&run.join("figures.json"));
     for key in [
         "detector.map",

@@ -87,6 +87,9 @@ pub struct Files<'a> {
     pub heldout: &'a [PathBuf],
     /// Tuning replay logs, the tables chosen on them.
     pub tune: &'a [PathBuf],
+    /// Score the budget tables `policy` already holds as they are: no learning, no
+    /// search, the tracker's cost model the tables were made with.
+    pub keep_tables: bool,
 }
 
 /// Run `frugal policy budget`.
@@ -99,9 +102,40 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
         config,
         heldout,
         tune,
+        keep_tables,
     } = *files;
     let log = ReplayLog::load(log_path)?;
     let mut policy = TrainedPolicy::load(policy_path)?;
+    if keep_tables {
+        if config.is_some() || !tune.is_empty() {
+            anyhow::bail!(
+                "--keep-tables scores the tables {} holds as they are: --config and --tune do not apply",
+                policy_path.display()
+            );
+        }
+        let stored = policy
+            .budget
+            .as_ref()
+            .with_context(|| {
+                format!(
+                    "{}: holds no budget tables (`frugal policy budget` without --keep-tables writes them)",
+                    policy_path.display()
+                )
+            })?
+            .tracker_cost;
+        let root = data
+            .map(Path::to_path_buf)
+            .unwrap_or_else(|| log.dataset.clone());
+        let cost = match stored {
+            Some(c) => c,
+            None => {
+                let ds = Dataset::load(&root)?;
+                let train: Vec<&VideoLog> = log.split(Split::Train).collect();
+                tracker_cost(&log, &policy, &train, &DatasetFrames::new(&ds), eval)?
+            }
+        };
+        return score_all(&log, &root, &policy, cost, eval, out, heldout);
+    }
     let cfg: BudgetConfig = match config {
         Some(p) => frugal_policies::error::read_toml_or_json(p)?,
         None => BudgetConfig::default(),
@@ -116,20 +150,7 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
     if train.is_empty() {
         anyhow::bail!("{}: the log has no training videos", log_path.display());
     }
-    // the tracker's medians, measured on the training videos as `policy eval` does
-    let cost = run_all(
-        &log,
-        &policy,
-        &train,
-        Some(&frames),
-        eval,
-        &[Strategy::StaticTracker],
-    )?
-    .cost;
-    println!(
-        "tracker medians: pyramid {:.3} ms, track {:.3} ms/object, init {:.3} ms/object",
-        cost.pyramid_ms, cost.track_ms, cost.init_ms
-    );
+    let cost = tracker_cost(&log, &policy, &train, &frames, eval)?;
     let pol = train_budget(&log, &frames, cost, &cfg, 0.5)?;
     for p in &pol.policies {
         println!(
@@ -186,12 +207,50 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
     }
     std::fs::create_dir_all(out)?;
     policy.save(&out.join("policy.json"))?;
-    let scores = score_log(&log, &root, &policy, cost, eval, out)?;
+    score_all(&log, &root, &policy, cost, eval, out, heldout)
+}
+
+/// The tracker's medians, measured on the `train` videos as `policy eval` does.
+fn tracker_cost(
+    log: &ReplayLog,
+    policy: &TrainedPolicy,
+    train: &[&VideoLog],
+    frames: &DatasetFrames,
+    eval: &EvalConfig,
+) -> anyhow::Result<frugal_policies::eval::TrackerCost> {
+    let cost = run_all(
+        log,
+        policy,
+        train,
+        Some(frames),
+        eval,
+        &[Strategy::StaticTracker],
+    )?
+    .cost;
+    println!(
+        "tracker medians: pyramid {:.3} ms, track {:.3} ms/object, init {:.3} ms/object",
+        cost.pyramid_ms, cost.track_ms, cost.init_ms
+    );
+    Ok(cost)
+}
+
+/// Scores `policy`'s budget tables on `log`'s test videos (into `out`) and on every
+/// held-out log's (into `out/heldout-<i>`).
+fn score_all(
+    log: &ReplayLog,
+    root: &Path,
+    policy: &TrainedPolicy,
+    cost: frugal_policies::eval::TrackerCost,
+    eval: &EvalConfig,
+    out: &Path,
+    heldout: &[PathBuf],
+) -> anyhow::Result<()> {
+    let scores = score_log(log, root, policy, cost, eval, out)?;
     print!("{}", budget_table(&scores));
     for (i, h) in heldout.iter().enumerate() {
         let hl = ReplayLog::load(h)?;
         let dir = out.join(format!("heldout-{}", i + 1));
-        let scores = score_log(&hl, &hl.dataset.clone(), &policy, cost, eval, &dir)?;
+        let scores = score_log(&hl, &hl.dataset.clone(), policy, cost, eval, &dir)?;
         println!("\nheld out: {}", h.display());
         print!("{}", budget_table(&scores));
     }

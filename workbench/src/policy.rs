@@ -87,6 +87,12 @@ struct BudgetArgs {
     /// thresholds and accesses per image in the streamed `mdp+tracker` strategy.
     #[arg(long)]
     eval_config: Option<PathBuf>,
+    /// Score the budget tables `--policy` already holds (a policy.json this command
+    /// wrote) as they are, on this log's test videos and every `--heldout` log: no
+    /// learning, no search, the tracker cost the tables were made with. For a table
+    /// made elsewhere, on new videos or under other latencies.
+    #[arg(long)]
+    keep_tables: bool,
 }
 
 /// Options of `frugal policy record`.
@@ -430,6 +436,7 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
                 config: a.config.as_deref(),
                 heldout: &a.heldout,
                 tune: &a.tune,
+                keep_tables: a.keep_tables,
             },
             &read_eval_config(a.eval_config.as_deref())?,
         ),

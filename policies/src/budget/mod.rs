@@ -113,6 +113,35 @@ pub struct BudgetConfig {
     pub search_min_gain: f64,
     /// What one move of the search sets ([`SearchLevel`]).
     pub search_level: SearchLevel,
+    /// Relative error of the measured latencies the search's moves must survive (0:
+    /// none). With `s > 0`, a move that pays on the measured latencies is kept only if
+    /// sAP@0.5 on the tuning videos falls under neither of two perturbed profiles: the
+    /// variants' latencies scaled from `1 - s` (the cheapest) to `1 + s` (the dearest),
+    /// and the reverse ([`latency_profiles`]).
+    pub search_latency_spread: f64,
+}
+
+/// The latency factors of each variant (cheapest first) under which the search's moves
+/// must hold: the measured latencies, then, when `spread > 0` and there are variants,
+/// the cheapest scaled by `1 - spread` up to the dearest by `1 + spread` (linearly in
+/// the variant's rank; a lone variant: `1 + spread`), and the reverse.
+pub fn latency_profiles(variants: usize, spread: f64) -> Vec<Vec<f64>> {
+    let mut profiles = vec![vec![1.0; variants]];
+    if spread > 0.0 && variants > 0 {
+        let ramp: Vec<f64> = (0..variants)
+            .map(|i| {
+                if variants == 1 {
+                    1.0
+                } else {
+                    2.0 * i as f64 / (variants - 1) as f64 - 1.0
+                }
+            })
+            .collect();
+        for sign in [1.0, -1.0] {
+            profiles.push(ramp.iter().map(|r| 1.0 + sign * spread * r).collect());
+        }
+    }
+    profiles
 }
 
 /// What one move of the search on the clock sets.
@@ -178,6 +207,7 @@ impl Default for BudgetConfig {
             search_rounds: 16,
             search_min_gain: 0.0,
             search_level: SearchLevel::Content,
+            search_latency_spread: 0.0,
         }
     }
 }
@@ -233,6 +263,9 @@ impl BudgetConfig {
         }
         if !(self.search_min_gain.is_finite() && self.search_min_gain >= 0.0) {
             return bad("search_min_gain", "must be finite and >= 0");
+        }
+        if !(0.0..0.5).contains(&self.search_latency_spread) {
+            return bad("search_latency_spread", "must be in [0, 0.5)");
         }
         if !(self.switch_cost.is_finite() && self.switch_cost >= 0.0 && self.smoothing >= 0.0) {
             return bad(
@@ -325,6 +358,12 @@ pub struct BudgetPolicies {
     pub action_ms: Vec<f64>,
     /// Mean per-frame F1 of each variant detecting every frame on the training videos.
     pub variant_f1: Vec<f64>,
+    /// The tracker's cost model the tables were learnt and chosen with (measured on
+    /// the machine that made them); an evaluation of the tables as they are
+    /// (`frugal policy budget --keep-tables`) charges it again, so that it reproduces
+    /// their figures. `None` in policies made before it was kept.
+    #[serde(default)]
+    pub tracker_cost: Option<crate::scoring::TrackerCost>,
 }
 
 impl BudgetPolicies {

@@ -139,6 +139,7 @@ pub fn train_budget(
         approx_f1: approx.iter().copied().map(mean).collect(),
         action_ms,
         variant_f1: variant_f1.iter().copied().map(mean).collect(),
+        tracker_cost: Some(cost),
     };
     let initial = out.initial as usize;
     for &budget in &cfg.budgets_ms {
