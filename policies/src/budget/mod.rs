@@ -113,35 +113,6 @@ pub struct BudgetConfig {
     pub search_min_gain: f64,
     /// What one move of the search sets ([`SearchLevel`]).
     pub search_level: SearchLevel,
-    /// Relative error of the measured latencies the search's moves must survive (0:
-    /// none). With `s > 0`, a move that pays on the measured latencies is kept only if
-    /// sAP@0.5 on the tuning videos falls under neither of two perturbed profiles: the
-    /// variants' latencies scaled from `1 - s` (the cheapest) to `1 + s` (the dearest),
-    /// and the reverse ([`latency_profiles`]).
-    pub search_latency_spread: f64,
-}
-
-/// The latency factors of each variant (cheapest first) under which the search's moves
-/// must hold: the measured latencies, then, when `spread > 0` and there are variants,
-/// the cheapest scaled by `1 - spread` up to the dearest by `1 + spread` (linearly in
-/// the variant's rank; a lone variant: `1 + spread`), and the reverse.
-pub fn latency_profiles(variants: usize, spread: f64) -> Vec<Vec<f64>> {
-    let mut profiles = vec![vec![1.0; variants]];
-    if spread > 0.0 && variants > 0 {
-        let ramp: Vec<f64> = (0..variants)
-            .map(|i| {
-                if variants == 1 {
-                    1.0
-                } else {
-                    2.0 * i as f64 / (variants - 1) as f64 - 1.0
-                }
-            })
-            .collect();
-        for sign in [1.0, -1.0] {
-            profiles.push(ramp.iter().map(|r| 1.0 + sign * spread * r).collect());
-        }
-    }
-    profiles
 }
 
 /// What one move of the search on the clock sets.
@@ -207,7 +178,6 @@ impl Default for BudgetConfig {
             search_rounds: 16,
             search_min_gain: 0.0,
             search_level: SearchLevel::Content,
-            search_latency_spread: 0.0,
         }
     }
 }
@@ -263,9 +233,6 @@ impl BudgetConfig {
         }
         if !(self.search_min_gain.is_finite() && self.search_min_gain >= 0.0) {
             return bad("search_min_gain", "must be finite and >= 0");
-        }
-        if !(0.0..0.5).contains(&self.search_latency_spread) {
-            return bad("search_latency_spread", "must be in [0, 0.5)");
         }
         if !(self.switch_cost.is_finite() && self.switch_cost >= 0.0 && self.smoothing >= 0.0) {
             return bad(

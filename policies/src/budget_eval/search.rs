@@ -30,7 +30,7 @@
 use super::score::score_runs;
 use super::{BudgetRun, BudgetStrategy, stream_strategy};
 use crate::TrainedPolicy;
-use crate::budget::{BudgetConfig, SearchLevel, VideoCache, latency_profiles};
+use crate::budget::{BudgetConfig, SearchLevel, VideoCache};
 use crate::error::{PolicyError, Result};
 use crate::replay::{Frames, MemoryFrames, ReplayLog, VideoLog};
 use crate::scoring::TrackerCost;
@@ -41,7 +41,6 @@ use frugal_runtime::ClassId;
 use frugal_runtime::bundle::Thresholds;
 use frugal_runtime::schedule::CONTENT_STATES;
 use serde::{Deserialize, Serialize};
-use std::borrow::Cow;
 use std::sync::Mutex;
 
 /// What the search on the clock did for one budget.
@@ -65,14 +64,6 @@ pub struct SearchTrace {
     /// Moves the search kept after the start ([`crate::budget::SearchLevel`]: one
     /// content state's action, or one state's).
     pub changes: usize,
-    /// Moves that paid on the measured latencies but lost sAP@0.5 under a perturbed
-    /// profile ([`BudgetConfig::search_latency_spread`]), and were dropped.
-    #[serde(default)]
-    pub latency_rejected: usize,
-    /// sAP@0.5 of the table kept under each perturbed latency profile, same runs
-    /// (empty without them).
-    #[serde(default)]
-    pub profiles_sap50: Vec<f64>,
     /// Tables streamed.
     pub tables: usize,
 }
@@ -116,12 +107,9 @@ pub struct TuneSet<'a> {
     pub videos: Vec<&'a VideoLog>,
 }
 
-/// The tuning videos, decoded once, each with its set and tracking cache; every set's
-/// log under every latency profile (`logs[profile][set]`, profile 0 the measured
-/// latencies).
+/// The tuning videos, decoded once, each with its log and tracking cache.
 struct Clock<'a> {
-    videos: Vec<(usize, &'a VideoLog, MemoryFrames, Mutex<VideoCache>)>,
-    logs: Vec<Vec<Cow<'a, ReplayLog>>>,
+    videos: Vec<(&'a ReplayLog, &'a VideoLog, MemoryFrames, Mutex<VideoCache>)>,
     classes: usize,
     cost: TrackerCost,
     thresholds: Thresholds,
@@ -132,12 +120,10 @@ struct Clock<'a> {
 type Runs = Vec<Vec<RunFig>>;
 
 impl Clock<'_> {
-    /// Streams budget `k`'s table of `policy` under latency profile `profile` over the
-    /// clock runs `which[video]` of every video, each run handed to `keep` with its
-    /// video and arrival times.
+    /// Streams budget `k`'s table of `policy` over the clock runs `which[video]` of
+    /// every video, each run handed to `keep` with its video and arrival times.
     fn stream<T: Send>(
         &self,
-        profile: usize,
         policy: &TrainedPolicy,
         k: usize,
         which: &[Vec<u32>],
@@ -150,8 +136,7 @@ impl Clock<'_> {
         self.videos
             .par_iter()
             .zip(which)
-            .map(|((set, v, frames, cache), runs)| {
-                let log: &ReplayLog = &self.logs[profile][*set];
+            .map(|((log, v, frames, cache), runs)| {
                 if runs.is_empty() {
                     return Ok(Vec::new());
                 }
@@ -187,7 +172,7 @@ impl Clock<'_> {
     /// frames (no clock), every run streamed again: the match records keep no F1.
     fn offline_f1(&self, policy: &TrainedPolicy, k: usize, clock_runs: u32) -> Result<f64> {
         let which = vec![(0..clock_runs).collect::<Vec<u32>>(); self.videos.len()];
-        let runs = self.stream(0, policy, k, &which, |_, _, r| r)?;
+        let runs = self.stream(policy, k, &which, |_, _, r| r)?;
         let fps = policy.budget.as_ref().ok_or_else(no_tables)?.config.fps;
         let pairs: Vec<(&VideoLog, &BudgetRun)> = self
             .videos
@@ -262,20 +247,11 @@ impl Clock<'_> {
         }
     }
 
-    /// Every clock run of every video, streamed with budget `k`'s table under latency
-    /// profile `profile`.
-    fn all(
-        &self,
-        profile: usize,
-        policy: &TrainedPolicy,
-        k: usize,
-        clock_runs: u32,
-    ) -> Result<Runs> {
+    /// Every clock run of every video, streamed with budget `k`'s table.
+    fn all(&self, policy: &TrainedPolicy, k: usize, clock_runs: u32) -> Result<Runs> {
         let which = vec![(0..clock_runs).collect::<Vec<u32>>(); self.videos.len()];
         Ok(self
-            .stream(profile, policy, k, &which, |v, arr, r| {
-                self.run_fig(v, arr, &r)
-            })?
+            .stream(policy, k, &which, |v, arr, r| self.run_fig(v, arr, &r))?
             .into_iter()
             .map(|rs| rs.into_iter().map(|(_, r)| r).collect())
             .collect())
@@ -313,8 +289,8 @@ pub fn search_tables(
     use rayon::prelude::*;
     let pol = policy.budget.as_ref().ok_or_else(no_tables)?;
     // every set's videos in id order, one set after the other: the halves alternate
-    let mut videos: Vec<(usize, &dyn Frames, &VideoLog)> = Vec::new();
-    for (i, set) in sets.iter().enumerate() {
+    let mut videos: Vec<(&ReplayLog, &dyn Frames, &VideoLog)> = Vec::new();
+    for set in sets {
         if set
             .log
             .variants
@@ -333,7 +309,7 @@ pub fn search_tables(
         }
         let mut vs = set.videos.clone();
         vs.sort_by_key(|v| v.id);
-        videos.extend(vs.into_iter().map(|v| (i, set.frames, v)));
+        videos.extend(vs.into_iter().map(|v| (set.log, set.frames, v)));
     }
     if videos.is_empty() {
         return Err(PolicyError::invalid(
@@ -342,30 +318,14 @@ pub fn search_tables(
             "no videos to tune the budget tables on".to_string(),
         ));
     }
-    let profiles = latency_profiles(pol.variants.len(), pol.config.search_latency_spread);
     let clock = Clock {
         classes: sets.iter().map(|s| s.log.classes).max().unwrap_or(1),
         videos: videos
             .par_iter()
-            .map(|&(set, frames, v)| {
-                Ok((set, v, MemoryFrames::of_video(frames, v)?, Mutex::default()))
+            .map(|&(log, frames, v)| {
+                Ok((log, v, MemoryFrames::of_video(frames, v)?, Mutex::default()))
             })
             .collect::<Result<_>>()?,
-        logs: profiles
-            .iter()
-            .enumerate()
-            .map(|(p, factors)| {
-                sets.iter()
-                    .map(|set| {
-                        if p == 0 {
-                            Cow::Borrowed(set.log)
-                        } else {
-                            Cow::Owned(scaled_header(set.log, factors))
-                        }
-                    })
-                    .collect()
-            })
-            .collect(),
         cost,
         thresholds,
         iou,
@@ -403,26 +363,9 @@ pub fn search_tables(
             set(policy, table);
             tables += 1;
             progress();
-            let runs = clock.all(0, policy, k, cfg.clock_runs)?;
+            let runs = clock.all(policy, k, cfg.clock_runs)?;
             let fig = clock.figures(&runs);
             Ok((runs, fig))
-        };
-        // a candidate `table` under profile `p`: the runs `which` streamed again, the
-        // others kept from `base`
-        let candidate = |policy: &TrainedPolicy,
-                         p: usize,
-                         which: &[Vec<u32>],
-                         base: &Runs|
-         -> Result<(Runs, Figures)> {
-            let fresh = clock.stream(p, policy, k, which, |v, arr, r| clock.run_fig(v, arr, &r))?;
-            let mut out = base.clone();
-            for (i, rs) in fresh.into_iter().enumerate() {
-                for (c, r) in rs {
-                    out[i][c as usize] = r;
-                }
-            }
-            let f = clock.figures(&out);
-            Ok((out, f))
         };
         let (learnt_runs, learnt_fig) = full(policy, &learnt)?;
         let learnt_sap50 = learnt_fig.sap50;
@@ -438,18 +381,8 @@ pub fn search_tables(
                 best = (name, table, runs, fig);
             }
         }
-        let (start, mut table, start_runs, start_fig) = best;
-        // the start under every perturbed latency profile too
-        let mut runs = vec![start_runs];
-        let mut figs = vec![start_fig];
-        set(policy, &table);
-        for p in 1..profiles.len() {
-            let r = clock.all(p, policy, k, cfg.clock_runs)?;
-            figs.push(clock.figures(&r));
-            runs.push(r);
-        }
+        let (start, mut table, mut runs, mut fig) = best;
         let mut changes = 0usize;
-        let mut latency_rejected = 0usize;
         // the moves: one action for a group of states (every state of one content
         // state, or one state alone)
         let groups: Vec<Vec<usize>> = match cfg.search_level {
@@ -460,7 +393,7 @@ pub fn search_tables(
         };
         for _ in 0..cfg.search_rounds {
             let mut visits = vec![0u64; states];
-            for r in runs[0].iter().flatten() {
+            for r in runs.iter().flatten() {
                 for &(s, n) in &r.queried {
                     if let Some(v) = visits.get_mut(s as usize) {
                         *v += u64::from(n);
@@ -489,9 +422,9 @@ pub fn search_tables(
                         })
                         .collect()
                 };
-                let mut which: Vec<Vec<Vec<u32>>> = runs.iter().map(&looking_up).collect();
+                let mut which = looking_up(&runs);
                 for &a in &allowed {
-                    if which[0].iter().all(Vec::is_empty) {
+                    if which.iter().all(Vec::is_empty) {
                         break; // no longer visited since an earlier change
                     }
                     if group.iter().all(|&s| usize::from(table[s]) == a) {
@@ -504,29 +437,23 @@ pub fn search_tables(
                     set(policy, &cand);
                     tables += 1;
                     progress();
-                    let (cand_runs, f) = candidate(policy, 0, &which[0], &runs[0])?;
-                    if !pays(&f, &figs[0], budget, cfg.search_min_gain) {
-                        continue;
-                    }
-                    // it pays on the measured latencies: it must not lose on the others
-                    let mut next = (vec![cand_runs], vec![f]);
-                    for p in 1..profiles.len() {
-                        let (r, fp) = candidate(policy, p, &which[p], &runs[p])?;
-                        if !holds(&fp, &figs[p]) {
-                            break;
+                    let fresh =
+                        clock.stream(policy, k, &which, |v, arr, r| clock.run_fig(v, arr, &r))?;
+                    let mut cand_runs = runs.clone();
+                    for (i, rs) in fresh.into_iter().enumerate() {
+                        for (c, r) in rs {
+                            cand_runs[i][c as usize] = r;
                         }
-                        next.0.push(r);
-                        next.1.push(fp);
                     }
-                    if next.1.len() < profiles.len() {
-                        latency_rejected += 1;
-                        continue;
+                    let f = clock.figures(&cand_runs);
+                    if pays(&f, &fig, budget, cfg.search_min_gain) {
+                        table = cand;
+                        runs = cand_runs;
+                        fig = f;
+                        changes += 1;
+                        changed = true;
+                        which = looking_up(&runs);
                     }
-                    table = cand;
-                    (runs, figs) = next;
-                    changes += 1;
-                    changed = true;
-                    which = runs.iter().map(&looking_up).collect();
                 }
             }
             if !changed {
@@ -537,8 +464,7 @@ pub fn search_tables(
         set(policy, &table);
         let f1 = clock.offline_f1(policy, k, cfg.clock_runs)?;
         // device ms per frame of each video over its clock runs
-        let fig = &figs[0];
-        let mut per_video: Vec<f64> = runs[0]
+        let mut per_video: Vec<f64> = runs
             .iter()
             .map(|rs| {
                 let (busy, frames) = busy_frames(rs);
@@ -562,8 +488,6 @@ pub fn search_tables(
             halves_sap50: fig.halves,
             device_ms_per_frame: fig.ms_per_frame,
             changes,
-            latency_rejected,
-            profiles_sap50: figs.iter().skip(1).map(|f| f.sap50).collect(),
             tables,
         });
     }
@@ -587,12 +511,6 @@ fn better_start(fig: &Figures, best: &Figures, budget: f64) -> bool {
     }
 }
 
-/// Whether a change that pays on the measured latencies holds under a perturbed profile,
-/// where the table was `cur`: sAP@0.5 over all tuning videos does not fall.
-fn holds(cand: &Figures, cur: &Figures) -> bool {
-    cand.sap50 >= cur.sap50
-}
-
 /// Whether a one-state change from `cur` to `cand` pays: it keeps the budget (when `cur`
 /// does), raises sAP@0.5 by more than `min_gain` and lowers it on neither half.
 fn pays(cand: &Figures, cur: &Figures, budget: f64, min_gain: f64) -> bool {
@@ -600,24 +518,6 @@ fn pays(cand: &Figures, cur: &Figures, budget: f64, min_gain: f64) -> bool {
     keeps
         && cand.sap50 > cur.sap50 + min_gain
         && cand.halves.iter().zip(&cur.halves).all(|(a, b)| *a >= *b)
-}
-
-/// `log`'s header (no videos) with variant `v`'s latency scaled by `factors[v]`.
-fn scaled_header(log: &ReplayLog, factors: &[f64]) -> ReplayLog {
-    let mut variants = log.variants.clone();
-    for (v, f) in variants.iter_mut().zip(factors) {
-        v.latency_ms *= f;
-    }
-    ReplayLog {
-        format: log.format.clone(),
-        version: log.version,
-        dataset: log.dataset.clone(),
-        classes: log.classes,
-        families: log.families.clone(),
-        variants,
-        max_detections: log.max_detections,
-        videos: Vec::new(),
-    }
 }
 
 #[cfg(test)]

@@ -5,7 +5,7 @@
 use super::fixture::log3;
 use frugal_data::Split;
 use frugal_policies::budget::{
-    BudgetConfig, BudgetPolicies, SearchLevel, VideoCache, latency_profiles, train_budget,
+    BudgetConfig, BudgetPolicies, SearchLevel, VideoCache, train_budget,
 };
 use frugal_policies::budget_eval::{
     BudgetStrategy, TuneSet, budget_scores, search_tables, stream_all, stream_strategy,
@@ -598,94 +598,5 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
     for (t1, t0) in traces1.iter().zip(&traces0) {
         assert_eq!(t1.start, t0.start);
         assert!(t1.sap50 >= t0.sap50 - 1e-12, "{t1:?}");
-    }
-}
-
-/// The latency profiles the search's moves must survive: the measured latencies, then
-/// the cheapest variant faster and the dearest slower (linearly in between), and the
-/// reverse.
-#[test]
-fn latency_profiles_ramp_from_the_cheapest_to_the_dearest_variant() {
-    assert_eq!(latency_profiles(2, 0.0), vec![vec![1.0, 1.0]]);
-    let close = |a: &[Vec<f64>], b: &[&[f64]]| {
-        a.len() == b.len()
-            && a.iter().zip(b).all(|(x, y)| {
-                x.len() == y.len() && x.iter().zip(*y).all(|(u, v)| (u - v).abs() < 1e-12)
-            })
-    };
-    let two = latency_profiles(2, 0.15);
-    assert!(
-        close(&two, &[&[1.0, 1.0], &[0.85, 1.15], &[1.15, 0.85]]),
-        "{two:?}"
-    );
-    let three = latency_profiles(3, 0.2);
-    assert!(
-        close(&three, &[&[1.0; 3], &[0.8, 1.0, 1.2], &[1.2, 1.0, 0.8]]),
-        "{three:?}"
-    );
-    let one = latency_profiles(1, 0.1);
-    assert!(close(&one, &[&[1.0], &[1.1], &[0.9]]), "{one:?}");
-}
-
-/// With a latency spread, a move is kept only when sAP@0.5 falls under neither
-/// perturbed profile: the kept table's figures under each profile are the evaluation's
-/// own on a log whose latencies are scaled alike, and they are no lower than the
-/// start's under the same profile.
-#[test]
-fn a_search_with_a_latency_spread_keeps_moves_that_lose_under_no_profile() {
-    let (log, frames, mut pol) = trained();
-    pol.config.search_latency_spread = 0.15;
-    pol.config.search_rounds = 0;
-    let (start_policy, _) = bundled(&log, &pol);
-    let videos: Vec<&VideoLog> = log.split(Split::Train).collect();
-    let thresholds = EvalConfig::default().thresholds();
-    let sets = [TuneSet {
-        log: &log,
-        frames: &frames,
-        videos: videos.clone(),
-    }];
-    let mut at_start = start_policy.clone();
-    let start = search_tables(&sets, COST, &mut at_start, thresholds, 0.5, &|| {}).unwrap();
-    let mut searched = start_policy.clone();
-    if let Some(b) = searched.budget.as_mut() {
-        b.config.search_rounds = 2;
-    }
-    let traces = search_tables(&sets, COST, &mut searched, thresholds, 0.5, &|| {}).unwrap();
-    let profiles = latency_profiles(log.variants.len(), 0.15);
-    for (t, t0) in traces.iter().zip(&start) {
-        assert_eq!(t0.changes, 0);
-        assert_eq!(t.start, t0.start);
-        assert_eq!(t.profiles_sap50.len(), 2, "{t:?}");
-        assert!(t.sap50 >= t0.sap50 - 1e-12, "{t:?}");
-        for (a, b) in t.profiles_sap50.iter().zip(&t0.profiles_sap50) {
-            assert!(a >= &(b - 1e-12), "{t:?} vs {t0:?}");
-        }
-    }
-    // the profile figures are the evaluation's on a log with the latencies scaled
-    let tables = searched.budget.clone().unwrap();
-    let bytes = frugal_policies::bundle::policy_bundle(&searched, thresholds).unwrap();
-    for (p, factors) in profiles.iter().enumerate().skip(1) {
-        let mut scaled = log.clone();
-        for (v, f) in scaled.variants.iter_mut().zip(factors) {
-            v.latency_ms *= f;
-        }
-        let vs: Vec<&VideoLog> = scaled.split(Split::Train).collect();
-        let runs = stream_all(&scaled, &vs, &frames, COST, &tables, &bytes, 0.5, &|| {}).unwrap();
-        let scores = budget_scores(&scaled, &vs, &tables, &runs, 0.5);
-        for (k, t) in traces.iter().enumerate() {
-            let row = scores
-                .iter()
-                .find(|r| {
-                    r.scenario == "all"
-                        && r.strategy == BudgetStrategy::Budget.name()
-                        && r.budget_ms == pol.config.budgets_ms[k]
-                })
-                .unwrap();
-            assert!(
-                (row.sap50 - t.profiles_sap50[p - 1]).abs() < 1e-12,
-                "profile {p}, budget {k}: {} vs {t:?}",
-                row.sap50
-            );
-        }
     }
 }

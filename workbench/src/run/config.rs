@@ -792,13 +792,6 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("tuning.width") && e.contains("480×270"), "{e}");
-        let e = load("[budget]\nsearch_latency_spread = 0.5\n")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("[budget]") && e.contains("search_latency_spread") && e.contains("[0, 0.5)"),
-            "{e}"
-        );
     }
 
     #[test]
