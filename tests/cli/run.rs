@@ -191,6 +191,33 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
         e.contains("--keep-tables") && e.contains("policy.json"),
         "{e}"
     );
+    // a policy made before the tracker cost was kept has it measured on the log's
+    // training videos, and is refused when the log has none
+    let mut old = json(&run.join("budget/policy.json"));
+    old["budget"]
+        .as_object_mut()
+        .unwrap()
+        .remove("tracker_cost")
+        .unwrap();
+    let old_path = tmp.path().join("old-policy.json");
+    std::fs::write(&old_path, serde_json::to_vec(&old).unwrap()).unwrap();
+    keep_args(&old_path, &[]).unwrap();
+    let e = frugal(&[
+        "policy",
+        "budget",
+        "--keep-tables",
+        "--log",
+        p(&held_log),
+        "--policy",
+        p(&old_path),
+        "--out",
+        p(&kept),
+    ])
+    .unwrap_err();
+    assert!(
+        e.contains("old-policy.json") && e.contains("no training videos"),
+        "{e}"
+    );
     let e = keep_args(&run.join("policy/policy.json"), &[]).unwrap_err();
     assert!(
         e.contains("policy/policy.json") && e.contains("holds no budget tables"),

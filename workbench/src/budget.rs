@@ -127,10 +127,23 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
             .map(Path::to_path_buf)
             .unwrap_or_else(|| log.dataset.clone());
         let cost = match stored {
-            Some(c) => c,
+            Some(c) => {
+                println!(
+                    "tracker cost the tables were made with: pyramid {:.3} ms, track {:.3} ms/object, init {:.3} ms/object",
+                    c.pyramid_ms, c.track_ms, c.init_ms
+                );
+                c
+            }
             None => {
                 let ds = Dataset::load(&root)?;
                 let train: Vec<&VideoLog> = log.split(Split::Train).collect();
+                if train.is_empty() {
+                    anyhow::bail!(
+                        "{}: keeps no tracker cost, and {} has no training videos to measure it on",
+                        policy_path.display(),
+                        log_path.display()
+                    );
+                }
                 tracker_cost(&log, &policy, &train, &DatasetFrames::new(&ds), eval)?
             }
         };
