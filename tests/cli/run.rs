@@ -146,13 +146,13 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
         run.join("config/evaluation.json"),
         run.join("budget/heldout/replay.json"),
     );
-    let keep_args = |policy: &Path, extra: &[&str]| -> Result<(), String> {
+    let keep_args = |log: &Path, policy: &Path, extra: &[&str]| -> Result<(), String> {
         let mut args = vec![
             "policy",
             "budget",
             "--keep-tables",
             "--log",
-            p(&replay),
+            p(log),
             "--policy",
             p(policy),
             "--out",
@@ -165,7 +165,7 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
         args.extend_from_slice(extra);
         frugal(&args)
     };
-    keep_args(&run.join("budget/policy.json"), &[]).unwrap();
+    keep_args(&replay, &run.join("budget/policy.json"), &[]).unwrap();
     for (stage, again) in [
         ("budget/budget.json", "budget.json"),
         ("budget/heldout-1/budget.json", "heldout-1/budget.json"),
@@ -183,6 +183,7 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
     }
     // settings that would change the tables, and a policy without tables, are refused
     let e = keep_args(
+        &replay,
         &run.join("budget/policy.json"),
         &["--config", p(&run.join("config/budget.json"))],
     )
@@ -201,24 +202,13 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
         .unwrap();
     let old_path = tmp.path().join("old-policy.json");
     std::fs::write(&old_path, serde_json::to_vec(&old).unwrap()).unwrap();
-    keep_args(&old_path, &[]).unwrap();
-    let e = frugal(&[
-        "policy",
-        "budget",
-        "--keep-tables",
-        "--log",
-        p(&held_log),
-        "--policy",
-        p(&old_path),
-        "--out",
-        p(&kept),
-    ])
-    .unwrap_err();
+    keep_args(&replay, &old_path, &[]).unwrap();
+    let e = keep_args(&held_log, &old_path, &[]).unwrap_err();
     assert!(
         e.contains("old-policy.json") && e.contains("no training videos"),
         "{e}"
     );
-    let e = keep_args(&run.join("policy/policy.json"), &[]).unwrap_err();
+    let e = keep_args(&replay, &run.join("policy/policy.json"), &[]).unwrap_err();
     assert!(
         e.contains("policy/policy.json") && e.contains("holds no budget tables"),
         "{e}"

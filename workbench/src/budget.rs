@@ -25,10 +25,12 @@ fn with_policy_buckets(log: &ReplayLog, policy: &TrainedPolicy) -> ReplayLog {
     log
 }
 
-/// Score `log`'s test videos and write `budget.json|csv|md` and the plots into `out`.
+/// Score `log`'s test videos (frames from `frames`, the dataset at `data`) and write
+/// `budget.json|csv|md` and the plots into `out`.
 fn score_log(
     log: &ReplayLog,
     data: &Path,
+    frames: &DatasetFrames,
     policy: &TrainedPolicy,
     cost: frugal_policies::eval::TrackerCost,
     eval: &EvalConfig,
@@ -46,8 +48,6 @@ fn score_log(
         );
     }
     let log = &with_policy_buckets(log, policy);
-    let ds = Dataset::load(data)?;
-    let frames = DatasetFrames::new(&ds);
     let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
     if videos.is_empty() {
         anyhow::bail!("{}: the log has no test videos", data.display());
@@ -57,9 +57,7 @@ fn score_log(
         * pol.config.budgets_ms.len()
         * frugal_policies::budget_eval::BudgetStrategy::ALL.len();
     let pb = crate::features::bar(false, n, "streaming");
-    let runs = stream_all(log, &videos, &frames, cost, pol, &bundle, 0.5, &|| {
-        pb.inc(1)
-    })?;
+    let runs = stream_all(log, &videos, frames, cost, pol, &bundle, 0.5, &|| pb.inc(1))?;
     pb.finish_and_clear();
     let scores = budget_scores(log, &videos, pol, &runs, 0.5);
     std::fs::create_dir_all(out)?;
@@ -106,6 +104,9 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
     } = *files;
     let log = ReplayLog::load(log_path)?;
     let mut policy = TrainedPolicy::load(policy_path)?;
+    let root = data
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| log.dataset.clone());
     if keep_tables {
         if config.is_some() || !tune.is_empty() {
             anyhow::bail!(
@@ -123,9 +124,8 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
                 )
             })?
             .tracker_cost;
-        let root = data
-            .map(Path::to_path_buf)
-            .unwrap_or_else(|| log.dataset.clone());
+        let ds = Dataset::load(&root)?;
+        let frames = DatasetFrames::new(&ds);
         let cost = match stored {
             Some(c) => {
                 println!(
@@ -135,7 +135,6 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
                 c
             }
             None => {
-                let ds = Dataset::load(&root)?;
                 let train: Vec<&VideoLog> = log.split(Split::Train).collect();
                 if train.is_empty() {
                     anyhow::bail!(
@@ -144,19 +143,16 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
                         log_path.display()
                     );
                 }
-                tracker_cost(&log, &policy, &train, &DatasetFrames::new(&ds), eval)?
+                tracker_cost(&log, &policy, &train, &frames, eval)?
             }
         };
-        return score_all(&log, &root, &policy, cost, eval, out, heldout);
+        return score_all(&log, &root, &frames, &policy, cost, eval, out, heldout);
     }
     let cfg: BudgetConfig = match config {
         Some(p) => frugal_policies::error::read_toml_or_json(p)?,
         None => BudgetConfig::default(),
     };
     cfg.check(config.unwrap_or(Path::new("<defaults>")))?;
-    let root = data
-        .map(Path::to_path_buf)
-        .unwrap_or_else(|| log.dataset.clone());
     let ds = Dataset::load(&root)?;
     let frames = DatasetFrames::new(&ds);
     let train: Vec<&VideoLog> = log.split(Split::Train).collect();
@@ -220,7 +216,7 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
     }
     std::fs::create_dir_all(out)?;
     policy.save(&out.join("policy.json"))?;
-    score_all(&log, &root, &policy, cost, eval, out, heldout)
+    score_all(&log, &root, &frames, &policy, cost, eval, out, heldout)
 }
 
 /// The tracker's medians, measured on the `train` videos as `policy eval` does.
@@ -247,23 +243,28 @@ fn tracker_cost(
     Ok(cost)
 }
 
-/// Scores `policy`'s budget tables on `log`'s test videos (into `out`) and on every
-/// held-out log's (into `out/heldout-<i>`).
+/// Scores `policy`'s budget tables on `log`'s test videos (into `out`; its dataset at
+/// `root`, read through `frames`) and on every held-out log's (into
+/// `out/heldout-<i>`).
+#[allow(clippy::too_many_arguments)]
 fn score_all(
     log: &ReplayLog,
     root: &Path,
+    frames: &DatasetFrames,
     policy: &TrainedPolicy,
     cost: frugal_policies::eval::TrackerCost,
     eval: &EvalConfig,
     out: &Path,
     heldout: &[PathBuf],
 ) -> anyhow::Result<()> {
-    let scores = score_log(log, root, policy, cost, eval, out)?;
+    let scores = score_log(log, root, frames, policy, cost, eval, out)?;
     print!("{}", budget_table(&scores));
     for (i, h) in heldout.iter().enumerate() {
         let hl = ReplayLog::load(h)?;
         let dir = out.join(format!("heldout-{}", i + 1));
-        let scores = score_log(&hl, &hl.dataset.clone(), policy, cost, eval, &dir)?;
+        let ds = Dataset::load(&hl.dataset)?;
+        let frames = DatasetFrames::new(&ds);
+        let scores = score_log(&hl, &hl.dataset, &frames, policy, cost, eval, &dir)?;
         println!("\nheld out: {}", h.display());
         print!("{}", budget_table(&scores));
     }

@@ -706,6 +706,11 @@ mod tests {
         RunConfig::load(Some(&path), Profile::Default).map_err(|e| anyhow::anyhow!("{e:#}"))
     }
 
+    /// The error `load` gives for `text`, as a string.
+    fn load_err(text: &str) -> String {
+        load(text).unwrap_err().to_string()
+    }
+
     #[test]
     fn every_profile_is_valid() {
         for p in [Profile::Default, Profile::Quick, Profile::Tiny] {
@@ -736,61 +741,49 @@ mod tests {
 
     #[test]
     fn bad_configs_name_the_key_and_what_is_allowed() {
-        let e = load("[detector.train]\nepochz = 3\n")
-            .unwrap_err()
-            .to_string();
+        let e = load_err("[detector.train]\nepochz = 3\n");
         assert!(
             e.contains("detector.train.epochz") && e.contains("epochs") && e.contains("run.toml"),
             "{e}"
         );
-        let e = load("[polcy]\nalpha = 1\n").unwrap_err().to_string();
+        let e = load_err("[polcy]\nalpha = 1\n");
         assert!(e.contains("`polcy`") && e.contains("policy"), "{e}");
-        let e = load("profile = \"huge\"\n").unwrap_err().to_string();
+        let e = load_err("profile = \"huge\"\n");
         assert!(e.contains("huge") && e.contains("quick"), "{e}");
-        let e = load("[policy]\ngamma = 1.5\n").unwrap_err().to_string();
+        let e = load_err("[policy]\ngamma = 1.5\n");
         assert!(e.contains("gamma") && e.contains("[0, 1)"), "{e}");
-        let e = load("[flights]\nmazes = [\"nowhere.maze\"]\n")
-            .unwrap_err()
-            .to_string();
+        let e = load_err("[flights]\nmazes = [\"nowhere.maze\"]\n");
         assert!(
             e.contains("flights.mazes") && e.contains("nowhere.maze"),
             "{e}"
         );
-        let e = load("[flights]\ndevice = \"jetson\"\n")
-            .unwrap_err()
-            .to_string();
+        let e = load_err("[flights]\ndevice = \"jetson\"\n");
         assert!(
             e.contains("flights.device") && e.contains("tx2-like"),
             "{e}"
         );
-        let e = load("[flights]\ncarry = \"everything\"\n")
-            .unwrap_err()
-            .to_string();
+        let e = load_err("[flights]\ncarry = \"everything\"\n");
         assert!(e.contains("everything") && e.contains("reported"), "{e}");
-        let e = load("[pareto]\nthreads = \"two\"\n")
-            .unwrap_err()
-            .to_string();
+        let e = load_err("[pareto]\nthreads = \"two\"\n");
         assert!(e.contains("[pareto]"), "{e}");
-        let e = load("[data]\nwidth = 0\n").unwrap_err().to_string();
+        let e = load_err("[data]\nwidth = 0\n");
         assert!(
             e.contains("[data]") && e.contains("frame size 0x270"),
             "{e}"
         );
         // the tables must not be chosen on the videos that judge them, nor on the
         // training data's seed
-        let e = load("[tuning]\nseed = 2031\n").unwrap_err().to_string();
+        let e = load_err("[tuning]\nseed = 2031\n");
         assert!(
             e.contains("tuning.seed") && e.contains("[heldout]'s seed"),
             "{e}"
         );
-        let e = load("[tuning]\nseed = 2026\n").unwrap_err().to_string();
+        let e = load_err("[tuning]\nseed = 2026\n");
         assert!(
             e.contains("tuning.seed") && e.contains("[data]'s seed"),
             "{e}"
         );
-        let e = load("[tuning]\nwidth = 320\nheight = 180\n")
-            .unwrap_err()
-            .to_string();
+        let e = load_err("[tuning]\nwidth = 320\nheight = 180\n");
         assert!(e.contains("tuning.width") && e.contains("480×270"), "{e}");
     }
 
@@ -860,20 +853,14 @@ mod tests {
                 .unwrap();
         let f = cfg.replay.footage.unwrap();
         assert_eq!((f.mazes.len(), f.seeds, f.every), (2, 2, 3));
-        let e = load("[replay.footage]\nmazes = [\"hard\"]\nseeds = 1\nevery = 3\n")
-            .unwrap_err()
-            .to_string();
+        let e = load_err("[replay.footage]\nmazes = [\"hard\"]\nseeds = 1\nevery = 3\n");
         assert!(
             e.contains("replay.footage.mazes") && e.contains("evaluation maze"),
             "{e}"
         );
-        let e = load("[replay.footage]\nmazes = [\"nowhere\"]\nseeds = 1\nevery = 3\n")
-            .unwrap_err()
-            .to_string();
+        let e = load_err("[replay.footage]\nmazes = [\"nowhere\"]\nseeds = 1\nevery = 3\n");
         assert!(e.contains("nowhere") && e.contains("train-a"), "{e}");
-        let e = load("[replay.footage]\nmazes = [\"train-a\"]\nseeds = 1\nevery = 0\n")
-            .unwrap_err()
-            .to_string();
+        let e = load_err("[replay.footage]\nmazes = [\"train-a\"]\nseeds = 1\nevery = 0\n");
         assert!(e.contains("replay.footage"), "{e}");
     }
 
