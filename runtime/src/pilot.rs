@@ -291,7 +291,9 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
     /// ask the controller (or scheduler) what to do with frame `frame`. A scheduled
     /// pilot that held tracks and has no `prev`, or whose tracks all ended, tells the
     /// scheduler [`TrackState::Lost`]; on [`Decision::Track`] it reports the tracked
-    /// boxes to [`Scheduler::shown`].
+    /// boxes to [`Scheduler::shown`]. A scheduled pilot does not track into a frame
+    /// its scheduler detects on anyway ([`Scheduler::due`]): the detection replaces
+    /// the boxes, so the tracking would be wasted compute.
     pub fn decide(
         &mut self,
         frame: u32,
@@ -301,7 +303,11 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
         self.frame = frame;
         let held_before = self.active > 0;
         let mut status: Option<TrackStatus> = None;
-        if let Some(prev) = prev {
+        let due = match &self.engine {
+            Engine::Scheduler(s) => s.due(frame),
+            Engine::Controller(_) => false,
+        };
+        if let (Some(prev), false) = (prev, due) {
             let mut worst = (f32::INFINITY, f32::INFINITY);
             let mut kept = 0;
             for i in 0..self.active.min(TRACKS) {
@@ -342,8 +348,9 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
                 track: status,
             }),
             Engine::Scheduler(s) => {
-                // without `prev` the held boxes could not follow into this frame
-                let track = if prev.is_some() && self.active > 0 {
+                // without `prev` the held boxes could not follow into this frame (on
+                // a due frame they were not tracked: the step detects anyway)
+                let track = if due || (prev.is_some() && self.active > 0) {
                     TrackState::Held
                 } else if held_before {
                     TrackState::Lost

@@ -228,6 +228,14 @@ impl<'a> Scheduler<'a> {
         self.period = if action.period > 0 { action.period } else { 1 };
     }
 
+    /// True when [`Scheduler::step`] on `frame` detects whatever the trackers report:
+    /// the first frame, or the current period has passed since the last detection.
+    /// A caller may then skip tracking into `frame` (its boxes would be replaced by the
+    /// detection's); [`crate::pilot::Pilot::scheduled`] does.
+    pub const fn due(&self, frame: u32) -> bool {
+        !self.started || frame.wrapping_sub(self.last_detection) >= self.period
+    }
+
     /// Decides frame `frame`. O(1), allocation-free, never panics.
     ///
     /// [`Trigger::Start`] on the first call (the schedules' initial action);

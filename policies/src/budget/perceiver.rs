@@ -74,6 +74,8 @@ pub struct Perceiver<'a> {
     gray: Vec<u8>,
     /// The frame processed last.
     last: Option<usize>,
+    /// The frame whose pyramid was charged last (by [`Perceiver::track`]).
+    charged: Option<usize>,
     /// The detection frame and variant the held boxes come from, then every frame
     /// tracked since: the key of the next step in [`VideoCache`].
     path: Vec<u32>,
@@ -106,6 +108,7 @@ impl<'a> Perceiver<'a> {
             held_in: [None, None],
             gray: vec![0; w * h],
             last: None,
+            charged: None,
             path: Vec::new(),
             held: Vec::new(),
             status: None,
@@ -171,6 +174,7 @@ impl<'a> Perceiver<'a> {
             return Ok((TrackState::Idle, 0.0));
         }
         let mut ms = self.cost.pyramid_ms;
+        self.charged = Some(f);
         if let Some(p) = prev {
             self.path.push(f as u32);
             let hit = self.cache.steps.borrow().get(&self.path).cloned();
@@ -242,7 +246,6 @@ impl<'a> Perceiver<'a> {
         dets.sort_by(|a, b| b.score.total_cmp(&a.score));
         let score = self.video.frames[f].best_score(v);
         let mut ms = self.log.variants[v].latency_ms;
-        let tracked_before = !self.held.is_empty();
         self.last = Some(f);
         self.path.clear();
         self.path.extend([f as u32, v as u32]);
@@ -278,9 +281,11 @@ impl<'a> Perceiver<'a> {
             }
         };
         ms += self.cost.init_ms * dets.len().min(self.max_tracks) as f64;
-        if !dets.is_empty() && !tracked_before {
-            // the pyramid was built for the trackers' start, not charged by `track`
+        if !dets.is_empty() && self.charged != Some(f) {
+            // the pyramid is built for the trackers' start: charged here unless
+            // `track` charged it on this frame
             ms += self.cost.pyramid_ms;
+            self.charged = Some(f);
         }
         Ok((dets, score, ms))
     }

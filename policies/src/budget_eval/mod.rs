@@ -176,6 +176,28 @@ struct Ctx<'a> {
 }
 
 impl Brain<'_> {
+    /// True when the next [`Brain::decide`] on frame `f` detects whatever the trackers
+    /// report (the runtime's [`Scheduler::due`]; a period that has passed): the
+    /// perception loop then skips tracking into `f`, as the runtime's `Pilot` does.
+    /// The paper's controller reads the tracks before it decides: never due.
+    fn due(&self, f: usize, ctx: &Ctx<'_>) -> bool {
+        let frame = f as u32;
+        match self {
+            Brain::Scheduler(s, _) => s.due(frame),
+            Brain::Period {
+                action,
+                started,
+                last_detection,
+                ..
+            } => {
+                let p_n = ctx.pol.config.periods.len();
+                !*started
+                    || frame.wrapping_sub(*last_detection) >= ctx.pol.config.periods[*action % p_n]
+            }
+            Brain::Controller(_) | Brain::Oracle { .. } => false,
+        }
+    }
+
     /// `Some(variant)` to detect, `None` to track. `track` is what the controller is
     /// told of the held boxes.
     fn decide(
@@ -389,12 +411,14 @@ pub fn stream_strategy(
     let start = cfg.start_frame(clock_run).min(arr.len().saturating_sub(1));
     let run = simulate(&arr[start..], cfg.rule, cfg.slowdown, |i| {
         let f = start + i;
-        let (state, mut ms) = if tracker {
+        // a frame detected on anyway is not tracked into (as the runtime's `Pilot`)
+        let track = tracker && !brain.due(f, &ctx);
+        let (state, mut ms) = if track {
             p.track(f)?
         } else {
             (TrackState::Idle, 0.0)
         };
-        let status = if tracker { p.status() } else { None };
+        let status = if track { p.status() } else { None };
         let shown = match brain.decide(f, state, status, &ctx) {
             Some(mut v) => loop {
                 let (dets, score, dms) = if tracker {

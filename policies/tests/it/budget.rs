@@ -330,6 +330,78 @@ fn a_shared_tracking_cache_changes_no_stream() {
     assert!(hits > 0, "no stream was read back from the cache");
 }
 
+/// Every processed frame is charged what it computes: a detection frame its variant's
+/// latency, the trackers' start and the pyramid they start on, and no tracking into it
+/// when its period has passed (the detection replaces the boxes, as in the runtime's
+/// `Pilot`); only a detection that a lost track brought forward pays for the tracking
+/// that found the loss. A tracked frame pays the pyramid and one step per held box.
+#[test]
+fn a_periodic_detection_frame_is_charged_no_tracking() {
+    let (log, frames, pol) = trained();
+    let (_, bytes) = bundled(&log, &pol);
+    let slowdown = pol.config.slowdown;
+    let whole_steps = |extra: f64| {
+        let steps = extra / COST.track_ms;
+        extra > -1e-9 && (steps - steps.round()).abs() < 1e-6
+    };
+    let (mut untracked_with_boxes, mut tracked) = (0, 0);
+    for (k, video) in
+        (0..pol.config.budgets_ms.len()).flat_map(|k| log.split(Split::Test).map(move |v| (k, v)))
+    {
+        let r = stream_strategy(
+            &log,
+            video,
+            &frames,
+            COST,
+            &pol,
+            k,
+            &bytes,
+            BudgetStrategy::StaticTracker,
+            0.5,
+            0,
+            &VideoCache::default(),
+        )
+        .unwrap();
+        let mut held = 0usize;
+        for (i, o) in r.run.outputs.iter().enumerate() {
+            let ms = o.device_ms / slowdown;
+            let at = format!("budget {k} video {} frame {}: {ms} ms", video.id, o.frame);
+            match r.detect[i] {
+                Some(v) => {
+                    let starts = o.shown.len().min(pol.config.max_tracks) as f64;
+                    let pyramid = if o.shown.is_empty() {
+                        0.0
+                    } else {
+                        COST.pyramid_ms
+                    };
+                    let detection =
+                        log.variants[usize::from(v)].latency_ms + starts * COST.init_ms + pyramid;
+                    let extra = ms - detection;
+                    if held > 0 && extra.abs() < 1e-9 {
+                        untracked_with_boxes += 1;
+                    } else if extra.abs() > 1e-9 {
+                        // tracked first (a lost track): the pyramid was charged by the
+                        // tracking, whole steps on top
+                        let tracking = extra + pyramid - COST.pyramid_ms;
+                        assert!(whole_steps(tracking) && tracking > 0.0, "{at}");
+                    }
+                }
+                None => {
+                    tracked += 1;
+                    // nothing held (no detection yet, or no tracker started): free
+                    let steps = ms - COST.pyramid_ms;
+                    assert!(ms.abs() < 1e-9 || whole_steps(steps), "{at}");
+                }
+            }
+            held = o.shown.len();
+        }
+    }
+    assert!(
+        untracked_with_boxes > 0 && tracked > 0,
+        "periodic detections over held boxes {untracked_with_boxes}, tracked frames {tracked}"
+    );
+}
+
 /// Clock run `r` streams every strategy from frame `r mod` the longest period, and
 /// that run is scored on the frames it streamed; with `phases` off every run starts on
 /// the first frame.

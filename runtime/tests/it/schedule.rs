@@ -496,6 +496,41 @@ fn fly_scheduled(
     (decisions, contents)
 }
 
+/// `due` says, before any tracking, whether the next `step` detects whatever the
+/// trackers report: the first frame, then every period; a lost track is not due.
+#[test]
+fn a_detection_is_due_on_the_first_frame_and_when_the_period_has_passed() {
+    let bytes = bundle_bytes();
+    let mut s = Scheduler::new(Bundle::parse(&bytes).unwrap(), 1).unwrap();
+    assert!(s.due(0) && s.due(7), "nothing detected yet");
+    assert!(matches!(
+        s.step(0, TrackState::Idle),
+        Decision::Detect { .. }
+    ));
+    s.detected(Some(0.95));
+    // budget 1: every state (0, every 4) after the initial (1, every 1)
+    assert!(s.due(1), "the initial period is 1");
+    assert!(matches!(
+        s.step(1, TrackState::Held),
+        Decision::Detect { .. }
+    ));
+    assert_eq!(s.current_period(), 4);
+    for f in 2..4 {
+        assert!(!s.due(f), "frame {f}");
+        assert_eq!(s.step(f, TrackState::Held), Decision::Track);
+    }
+    assert!(!s.due(4) && s.due(5));
+    // not due, but a lost track brings the detection forward all the same
+    assert!(matches!(
+        s.step(4, TrackState::Lost),
+        Decision::Detect {
+            reason: Trigger::TrackerLost,
+            ..
+        }
+    ));
+    assert!(!s.due(5) && s.due(8));
+}
+
 #[test]
 fn a_scheduled_pilot_detects_every_period_and_reports_what_it_shows() {
     // budget 1: (0, 4) everywhere after the initial (1, 1)
