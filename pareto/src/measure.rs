@@ -157,6 +157,10 @@ pub struct ParetoReport {
     pub latency_noise_floor: f64,
     /// ONNX Runtime threads.
     pub threads: usize,
+    /// Latency of the reference detector ([`frugal_models::onnx::export_reference`]),
+    /// timed on the same frames in turn with the variants: what a device profile scales
+    /// from.
+    pub reference: Latency,
     /// Every variant.
     pub variants: Vec<VariantResult>,
     /// Per metric: names on the noise-aware front, fastest first (`variants.json`
@@ -321,6 +325,16 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
     };
     let mut dets = open_all()?;
     let k = variants.len();
+    // the reference detector, timed with the variants (last in the rotation) and
+    // scored by nobody: how fast this machine runs the detector a device profile's
+    // speed is stated in
+    let reference_dir = opts.out.join(".reference");
+    frugal_models::onnx::export_reference(&reference_dir)
+        .map_err(|e| ParetoError::Input(format!("the reference detector: {e}")))?;
+    dets.push(
+        OrtDetector::open(&reference_dir, opts.threads)
+            .map_err(|e| ParetoError::Input(e.to_string()))?,
+    );
     // the frames to time, spread evenly (ascending), and the others
     let timed = spread((0..n).collect(), opts.timed_frames);
     let untimed: Vec<usize> = (0..n).filter(|i| timed.binary_search(i).is_err()).collect();
@@ -350,6 +364,17 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
         )?);
         tick();
     }
+    let reference = dets.pop();
+    drop(reference);
+    std::fs::remove_dir_all(&reference_dir).map_err(|e| ParetoError::io(&reference_dir, e))?;
+    let mut reference_ms = Vec::with_capacity(timed.len());
+    for f in found.iter_mut().flatten() {
+        if let Some((_, Some(ms))) = f.pop() {
+            reference_ms.push(ms);
+        }
+    }
+    let reference = Latency::from_samples(&reference_ms)
+        .ok_or_else(|| ParetoError::Input("no timings of the reference detector".into()))?;
     // 2. the other frames, accuracy only, split over the workers
     let parts: Vec<Vec<(usize, FrameOutcome)>> = std::thread::scope(|sc| {
         let mut own = Some(&mut dets);
@@ -529,6 +554,7 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
         bootstrap_resamples: resamples.len(),
         latency_noise_floor: crate::stats::LATENCY_NOISE_FLOOR,
         threads: opts.threads,
+        reference,
         variants: out,
         fronts,
         plain_fronts,
@@ -548,7 +574,11 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
             Some((&variants[i], report.variants[i].latency.median_ms))
         })
         .collect();
-    write_variants_file(&opts.out.join("variants.json"), &on_map)?;
+    write_variants_file(
+        &opts.out.join("variants.json"),
+        &on_map,
+        report.reference.median_ms,
+    )?;
     if let Some(docs) = &opts.docs_png {
         let src = opts.out.join("pareto_map.png");
         std::fs::copy(&src, docs).map_err(|e| ParetoError::io(docs, e))?;
@@ -633,6 +663,10 @@ pub fn table(r: &ParetoReport) -> String {
             }
         );
     }
+    s.push_str(&format!(
+        "reference detector (default architecture, fp32, 480×270): {:.2} ms median, {:.2} p90\n",
+        r.reference.median_ms, r.reference.p90_ms
+    ));
     s
 }
 
@@ -774,6 +808,7 @@ mod tests {
             bootstrap_resamples: BOOTSTRAP_RESAMPLES,
             latency_noise_floor: crate::stats::LATENCY_NOISE_FLOOR,
             threads: 1,
+            reference: Latency::from_samples(&[32.0, 33.0]).unwrap(),
             variants: out,
             fronts,
             plain_fronts,

@@ -66,17 +66,22 @@ struct Entry {
 
 #[derive(Serialize)]
 struct File {
+    /// The reference detector's median latency on the same machine, same timing.
+    reference_ms: f64,
     variants: Vec<Entry>,
 }
 
-/// The variants file of `frugal policy record` (`{"variants": [{"name", "family":
-/// "cnn", "latency_ms", "source": {"kind": "onnx", "dir"}}]}`) for `(variant,
-/// median latency)` pairs, written atomically.
+/// The variants file of `frugal policy record` (`{"reference_ms", "variants":
+/// [{"name", "family": "cnn", "latency_ms", "source": {"kind": "onnx", "dir"}}]}`) for
+/// `(variant, median latency)` pairs and the reference detector's median latency
+/// ([`frugal_models::onnx::export_reference`]) timed with them, written atomically.
 pub fn write_variants_file(
     path: &Path,
     variants: &[(&VariantDir, f64)],
+    reference_ms: f64,
 ) -> Result<(), ParetoError> {
     let file = File {
+        reference_ms,
         variants: variants
             .iter()
             .map(|(v, ms)| Entry {

@@ -218,6 +218,7 @@ mod tests {
             }],
             variants: vec![info("cheap", 1.0), info("good", 4.0)],
             max_detections: 8,
+            reference_ms: None,
             videos: vec![VideoLog {
                 id: 0,
                 clutter: Clutter::Low,

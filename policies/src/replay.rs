@@ -157,6 +157,12 @@ pub struct ReplayLog {
     pub variants: Vec<VariantInfo>,
     /// Detections kept per frame and variant.
     pub max_detections: usize,
+    /// Median latency (ms, the measuring machine) of the reference detector, timed with
+    /// the variants (`frugal pareto`): what a device profile's speed is scaled from
+    /// ([`crate::budget::BudgetConfig::device_slowdown`]). `None` when the variants
+    /// file gave none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_ms: Option<f64>,
     /// The videos.
     pub videos: Vec<VideoLog>,
 }
@@ -540,6 +546,7 @@ pub fn record(
         families: set.families.clone(),
         variants: set.variants.clone(),
         max_detections,
+        reference_ms: None,
         videos,
     })
 }

@@ -351,6 +351,10 @@ pub struct VariantsFile {
     pub families: Vec<FamilyEntry>,
     /// The variants.
     pub variants: Vec<VariantEntry>,
+    /// Median latency (ms) of the reference detector timed with the variants on the
+    /// machine that timed them (`frugal pareto` writes it); a replay log keeps it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_ms: Option<f64>,
 }
 
 impl VariantsFile {
@@ -571,6 +575,7 @@ mod tests {
         let file = VariantsFile {
             families: Vec::new(),
             variants: vec![entry("a", Some(5.0)), entry("b", None), entry("c", None)],
+            reference_ms: None,
         };
         let mut asked = Vec::new();
         let set = VariantSet::from_file(

@@ -148,11 +148,26 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
         };
         return score_all(&log, &root, &frames, &policy, cost, eval, out, heldout);
     }
-    let cfg: BudgetConfig = match config {
+    let mut cfg: BudgetConfig = match config {
         Some(p) => frugal_policies::error::read_toml_or_json(p)?,
         None => BudgetConfig::default(),
     };
     cfg.check(config.unwrap_or(Path::new("<defaults>")))?;
+    // the device's latencies: the measured ones scaled by the device's speed over this
+    // machine's, as the reference detector timed with the variants tells
+    let slowdown = cfg.device_slowdown(log.reference_ms);
+    match (cfg.device_reference_ms, log.reference_ms) {
+        (Some(d), Some(h)) => println!(
+            "device {}: the reference detector takes {d:.1} ms there and took {h:.2} ms on the machine that timed the variants: slowdown {slowdown:.3}",
+            cfg.device
+        ),
+        _ => println!(
+            "device {}: slowdown {slowdown} as configured ({} records no reference timing)",
+            cfg.device,
+            log_path.display()
+        ),
+    }
+    cfg.slowdown = slowdown;
     let ds = Dataset::load(&root)?;
     let frames = DatasetFrames::new(&ds);
     let train: Vec<&VideoLog> = log.split(Split::Train).collect();
@@ -163,7 +178,7 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
     let pol = train_budget(&log, &frames, cost, &cfg, 0.5)?;
     for p in &pol.policies {
         println!(
-            "budget {} ms ({} ×{}): λ {:.3}, expected {:.2} ms/frame (P95 over videos {:.2}), training F1/frame {:.3}",
+            "budget {} ms ({} ×{:.3}): λ {:.3}, expected {:.2} ms/frame (P95 over videos {:.2}), training F1/frame {:.3}",
             p.budget_ms, cfg.device, cfg.slowdown, p.lambda, p.expected_ms, p.p95_ms, p.train_f1
         );
     }

@@ -329,7 +329,7 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
                     Ok(ms)
                 },
             )?;
-            let log = record(
+            let mut log = record(
                 &mut set,
                 &frames,
                 videos,
@@ -338,6 +338,7 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
                 a.max_detections,
                 !a.quiet,
             )?;
+            log.reference_ms = file.reference_ms;
             log.save(&a.out)?;
             let n: usize = log.videos.iter().map(|v| v.frames.len()).sum();
             println!(

@@ -407,6 +407,31 @@ pub fn export_detector_quantized(
     Ok(files)
 }
 
+/// Input size (height, width) of the reference detector ([`export_reference`]).
+pub const REFERENCE_SIZE: (usize, usize) = (270, 480);
+
+/// Seed of the reference detector's weights.
+const REFERENCE_SEED: i64 = 2026;
+
+/// Exports the *reference detector* into `dir`: the default architecture
+/// ([`crate::config::ModelConfig::default`], ten classes) at 480×270, fp32, with seeded
+/// random weights. Its cost does not depend on what was trained (the weights change no
+/// operation count, and its region proposal network keeps its 50 proposals as a trained
+/// one does), so timing it next to the variants on any machine tells how fast that
+/// machine runs this detector: a device profile states its speed as this detector's
+/// latency on the device, and the variants' device latencies follow from the ratio
+/// measured on the host (`frugal pareto`'s `reference_ms`).
+pub fn export_reference(dir: &Path) -> Result<ExportedFiles, ModelError> {
+    let (h, w) = REFERENCE_SIZE;
+    tch::manual_seed(REFERENCE_SEED);
+    let cfg = crate::config::ModelConfig {
+        input_size: Some([w, h]),
+        ..crate::config::ModelConfig::default()
+    };
+    let model = FasterRcnn::new(cfg, tch::Device::Cpu)?;
+    export_detector_quantized(&model, h, w, None, dir)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

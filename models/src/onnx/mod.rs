@@ -14,8 +14,9 @@ pub(crate) mod qdq;
 pub use builder::{Dim, GraphBuilder, OPSET, attr_float, attr_int, attr_ints, attr_string};
 pub use executor::{GlueSpec, OrtDetector, OrtError, StageTimes};
 pub use export::{
-    BACKBONE_RPN_FILE, DetectorGraphs, ExportedFiles, ROI_HEAD_FILE, detector_graphs,
-    detector_graphs_quantized, export_detector, export_detector_quantized,
+    BACKBONE_RPN_FILE, DetectorGraphs, ExportedFiles, REFERENCE_SIZE, ROI_HEAD_FILE,
+    detector_graphs, detector_graphs_quantized, export_detector, export_detector_quantized,
+    export_reference,
 };
 pub use parity::{ParityReport, parity};
 pub use qdq::{ActQuant, QuantSpec};

@@ -60,7 +60,14 @@ pub struct BudgetConfig {
     pub budgets_ms: Vec<f64>,
     /// The device profile's name.
     pub device: String,
-    /// Device time over measured time (the profile's slowdown; tx2-like: 6).
+    /// The device's speed: the reference detector's latency on it, ms
+    /// (`frugal_models::onnx::export_reference`; tx2-like: 194.4). With a log that
+    /// records the reference's latency on the measuring machine, the slowdown is their
+    /// ratio ([`BudgetConfig::device_slowdown`]), so the device is the same whatever
+    /// machine measured the variants. `None`: [`BudgetConfig::slowdown`] as given.
+    pub device_reference_ms: Option<f64>,
+    /// Device time over measured time: the fallback when no reference is known; once
+    /// the budget stage has scaled a log, the slowdown it used.
     pub slowdown: f64,
     /// Detect-every-`N` choices, ascending, 1..=255 (at most 4).
     pub periods: Vec<u32>,
@@ -158,6 +165,7 @@ impl Default for BudgetConfig {
         Self {
             budgets_ms: vec![33.0, 16.0, 8.0],
             device: "tx2-like".into(),
+            device_reference_ms: Some(TX2_LIKE_REFERENCE_MS),
             slowdown: 6.0,
             periods: vec![1, 2, 4, 8],
             switch_cost: 0.02,
@@ -182,7 +190,23 @@ impl Default for BudgetConfig {
     }
 }
 
+/// The tx2-like device profile: the reference detector takes this long on it, ms. Six
+/// times its 32.4 ms on the machine that measured the first published runs (an x86
+/// server core with AVX-512 VNNI, ONNX Runtime, one thread), whose slowdown was then
+/// fixed at 6.
+pub const TX2_LIKE_REFERENCE_MS: f64 = 194.4;
+
 impl BudgetConfig {
+    /// The slowdown of the device over the machine that measured a log whose reference
+    /// detector took `host_reference_ms` there: `device_reference_ms /
+    /// host_reference_ms` when both are known, else [`BudgetConfig::slowdown`].
+    pub fn device_slowdown(&self, host_reference_ms: Option<f64>) -> f64 {
+        match (self.device_reference_ms, host_reference_ms) {
+            (Some(d), Some(h)) if h > 0.0 && h.is_finite() => d / h,
+            _ => self.slowdown,
+        }
+    }
+
     /// The content edges.
     pub fn edges(&self) -> ContentEdges {
         ContentEdges {
@@ -202,6 +226,12 @@ impl BudgetConfig {
         }
         if !(self.slowdown.is_finite() && self.slowdown > 0.0) {
             return bad("slowdown", "must be finite and > 0");
+        }
+        if self
+            .device_reference_ms
+            .is_some_and(|r| !(r.is_finite() && r > 0.0))
+        {
+            return bad("device_reference_ms", "must be finite and > 0 when given");
         }
         if self.periods.is_empty()
             || self.periods.len() > frugal_runtime::schedule::MAX_PERIODS

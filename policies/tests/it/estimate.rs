@@ -48,6 +48,7 @@ fn hand_log() -> ReplayLog {
         }],
         variants: vec![variant("a", 1.0), variant("b", 4.0)],
         max_detections: 8,
+        reference_ms: None,
         videos: vec![VideoLog {
             id: 0,
             clutter: Clutter::Low,

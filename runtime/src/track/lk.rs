@@ -25,14 +25,9 @@ pub struct LkParams {
 }
 
 impl Default for LkParams {
+    /// The tracker's ([`super::TrackerParams::DEFAULT`]).
     fn default() -> Self {
-        Self {
-            win_radius: 7,
-            levels: 3,
-            max_iters: 20,
-            epsilon: 0.01,
-            min_eigen: 1e-3,
-        }
+        super::TrackerParams::DEFAULT.lk
     }
 }
 

@@ -2,7 +2,8 @@
 //! on the same synthetic clip.
 //!
 //! Tolerance: both trackers refine each point at level 0 on the same 8-bit images with
-//! the same 15×15 window and stopping rule (at most 20 Gauss-Newton steps, stop when a
+//! the same 15×15 window and stopping rule (`parity::PARITY`, tighter than the deployed
+//! defaults) (at most 20 Gauss-Newton steps, stop when a
 //! step is shorter than ε = 0.01 px), so they solve the same least-squares problem and
 //! differ only where one stops a step earlier than the other (≤ ε per frame), in the
 //! pyramid filter (3-tap here, 5-tap in OpenCV: it moves only the coarse-level starting

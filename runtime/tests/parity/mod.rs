@@ -10,6 +10,21 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
+/// The parameters both trackers run with: the deployed tracker's
+/// ([`TrackerParams::DEFAULT`]) but for a 15×15 window and a tight stopping rule (at
+/// most 20 steps, ε = 0.01 px), so that the two solve the same least-squares problem to
+/// a precision the comparison can hold them to; the deployed defaults stop earlier.
+pub const PARITY: TrackerParams = TrackerParams {
+    lk: frugal_runtime::track::LkParams {
+        win_radius: 7,
+        levels: 3,
+        max_iters: 20,
+        epsilon: 0.01,
+        min_eigen: 1e-3,
+    },
+    ..TrackerParams::DEFAULT
+};
+
 /// Most points per track, as in the benchmark budget.
 pub const MAX_POINTS: usize = 64;
 
@@ -54,7 +69,7 @@ fn gray(clip: &Clip, f: usize) -> GrayImage<'_> {
 /// the best of `repeat` runs of pyramid build + track per frame.
 pub fn run_rust(clip: &Clip, starts: &[usize], length: usize, repeat: usize) -> Vec<RustSegment> {
     let (w, h) = (clip.width, clip.height);
-    let prm = TrackerParams::DEFAULT;
+    let prm = PARITY;
     let need = Pyramid::required_len(w, h, prm.lk.levels).expect("pyramid size");
     let (mut wa, mut wb) = (vec![0u8; need], vec![0u8; need]);
     let mut out = Vec::new();
@@ -159,7 +174,7 @@ pub fn run_opencv(
     repeat: usize,
 ) -> Result<(String, Vec<CvSegment>), String> {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/klt_opencv.py");
-    let prm = TrackerParams::DEFAULT;
+    let prm = PARITY;
     let out = Command::new(python)
         .arg(&script)
         .arg(dir)

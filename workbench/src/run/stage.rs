@@ -741,6 +741,17 @@ impl Ctx {
     fn flights(&self, out: &Path) -> anyhow::Result<Vec<String>> {
         let f = &self.config.flights;
         let (static_name, static_dir) = self.static_variant()?;
+        // the budget stage's device flies the same: its speed scaled by the reference
+        // detector's latency on this machine (timed by the Pareto stage), when known
+        let variants = self.dir("pareto").join("variants.json");
+        let reference = frugal_policies::variants::VariantsFile::read(&variants)?.reference_ms;
+        let budget = &self.config.budget;
+        let slowdown = match reference {
+            Some(h) if f.device == budget.device && budget.device_reference_ms.is_some() => {
+                budget.device_slowdown(Some(h)).to_string()
+            }
+            _ => String::new(),
+        };
         let common = |perception: &str| {
             let mut a: Vec<String> = vec!["fly".into()];
             for m in &f.mazes {
@@ -766,6 +777,9 @@ impl Ctx {
                 "--out".into(),
                 arg(&out.join(perception)),
             ]);
+            if !slowdown.is_empty() {
+                a.extend(["--slowdown".into(), slowdown.clone()]);
+            }
             a
         };
         let mut st = common("static");
