@@ -93,12 +93,14 @@ impl core::error::Error for ScheduleError {}
 
 /// The per-frame scheduler over a bundle's [`Schedules`]. `Copy`, allocation-free.
 ///
-/// A detection is asked for on the first frame ([`Trigger::Start`]: the schedules'
-/// initial action), when the trackers lost everything they held
-/// ([`Trigger::TrackerLost`]), and when the current period has passed since the last
-/// detection ([`Trigger::Periodic`]). Every detection but the first looks its action
-/// up in the current budget's table at [`Scheduler::state`] and adopts its variant
-/// and period.
+/// A detection is asked for on the first frame ([`Trigger::Start`]), when the trackers
+/// lost everything they held ([`Trigger::TrackerLost`]), and when the current period
+/// has passed since the last detection ([`Trigger::Periodic`]). Every detection looks
+/// its action up in the current budget's table at [`Scheduler::state`] and adopts its
+/// variant and period; on the first frame that state is the miss bucket, the
+/// schedules' initial variant and nothing shown. (A version-4 bundle runs the
+/// schedules' initial action on the first frame instead, under every budget:
+/// [`Schedules::first_from_table`].)
 #[derive(Clone, Copy, Debug)]
 pub struct Scheduler<'a> {
     bundle: Bundle<'a>,
@@ -238,11 +240,11 @@ impl<'a> Scheduler<'a> {
 
     /// Decides frame `frame`. O(1), allocation-free, never panics.
     ///
-    /// [`Trigger::Start`] on the first call (the schedules' initial action);
-    /// [`Trigger::TrackerLost`] when `track` is [`TrackState::Lost`];
-    /// [`Trigger::Periodic`] when `frame - last detection >= current period`;
-    /// otherwise [`Decision::Track`]. Every detection but the first adopts the action
-    /// of the current budget's table at [`Scheduler::state`].
+    /// [`Trigger::Start`] on the first call; [`Trigger::TrackerLost`] when `track` is
+    /// [`TrackState::Lost`]; [`Trigger::Periodic`] when `frame - last detection >=
+    /// current period`; otherwise [`Decision::Track`]. Every detection adopts the
+    /// action of the current budget's table at [`Scheduler::state`] (a version-4
+    /// bundle's first detection, the schedules' initial action).
     pub fn step(&mut self, frame: u32, track: TrackState) -> Decision {
         self.stats.frames = self.stats.frames.wrapping_add(1);
         let reason = if !self.started {
@@ -254,9 +256,11 @@ impl<'a> Scheduler<'a> {
         } else {
             return Decision::Track;
         };
-        if reason == Trigger::Start {
+        if reason == Trigger::Start && !self.schedules.first_from_table() {
+            // a version-4 bundle: the initial action, whatever the budget
             self.adopt(self.schedules.initial());
         } else {
+            // (on the first frame: the miss bucket, the initial variant, nothing shown)
             if let Some(action) = self.schedules.action(self.budget, self.state()) {
                 self.adopt(action);
             }

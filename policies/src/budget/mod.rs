@@ -344,7 +344,10 @@ pub struct BudgetPolicies {
     pub variants: Vec<String>,
     /// Device ms of each variant's detection (measured × slowdown).
     pub variant_device_ms: Vec<f64>,
-    /// The first action (before any state): the cheapest variant, shortest period.
+    /// The schedules' initial action: the cheapest variant (shortest period). Its
+    /// variant is the current variant before the first detection, which takes each
+    /// table's action at (miss bucket, that variant, nothing shown), as the runtime's
+    /// scheduler reads a bundle of format 5.
     pub initial: u16,
     /// One per budget.
     pub policies: Vec<BudgetPolicy>,

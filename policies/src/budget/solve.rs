@@ -141,12 +141,20 @@ pub fn train_budget(
         variant_f1: variant_f1.iter().copied().map(mean).collect(),
         tracker_cost: Some(cost),
     };
-    let initial = out.initial as usize;
+    // the first detection reads the table at the state the scheduler starts in: the miss
+    // bucket, the initial variant, nothing shown
+    let start = state_index(
+        frugal_runtime::bundle::Bucket::Miss,
+        cheapest as u16,
+        frugal_runtime::schedule::Content::default(),
+        v_n,
+    );
     for &budget in &cfg.budgets_ms {
         let allowed = out.allowed(budget);
         let solve = |lambda: f64| {
             let actions = model.solve(budget, lambda, cfg, &allowed);
-            let (ms, p95, f1) = rollout(&segs, &actions, initial, cfg, &leave, &seg_len, &seg_cost);
+            let first = actions[start];
+            let (ms, p95, f1) = rollout(&segs, &actions, first, cfg, &leave, &seg_len, &seg_cost);
             (actions, ms, p95, f1)
         };
         let (mut lo, mut hi) = (0.0f64, 1.0f64);
@@ -195,13 +203,13 @@ pub fn train_budget(
     Ok(out)
 }
 
-/// Roll a policy out on the training segments: (device ms per frame overall, its 95th
-/// percentile over videos, mean per-frame F1).
+/// Roll a policy out on the training segments from action `first`: (device ms per frame
+/// overall, its 95th percentile over videos, mean per-frame F1).
 #[allow(clippy::type_complexity)]
 fn rollout(
     segs: &[Vec<Vec<Segment>>],
     actions: &[usize],
-    initial: usize,
+    first: usize,
     cfg: &BudgetConfig,
     leave: &dyn Fn(usize, &Segment, usize, Option<(i64, BBox)>) -> (usize, Option<(i64, BBox)>),
     seg_len: &dyn Fn(&Segment, usize) -> usize,
@@ -211,7 +219,7 @@ fn rollout(
     let (mut ms, mut frames, mut f1) = (0.0, 0usize, 0.0);
     let mut per_video = Vec::new();
     for video in segs {
-        let (mut t, mut a, mut last) = (0usize, initial, None);
+        let (mut t, mut a, mut last) = (0usize, first, None);
         let (mut vms, mut vframes) = (0.0, 0usize);
         while t < video.len() {
             let (v, p) = (a / p_n, a % p_n);

@@ -214,7 +214,11 @@ impl Brain<'_> {
                 let at = s.state();
                 match s.step(frame, state) {
                     Decision::Detect { variant, reason } => {
-                        if reason != frugal_runtime::Trigger::Start {
+                        // every detection reads the table (the first too, as the
+                        // bundles written today say)
+                        if reason != frugal_runtime::Trigger::Start
+                            || s.schedules().first_from_table()
+                        {
                             queried.push(at as u32);
                         }
                         Some(usize::from(variant))

@@ -13,12 +13,17 @@
 //! one zero-copy reader that enforces it, section by section, so that each check sits
 //! in the same file as the table row it enforces.
 //!
-//! # Format, version 4 (this table is the specification)
+//! # Format, version 5 (this table is the specification)
 //!
-//! Version 4 added the optional schedules section (kind 6). The reader also reads
-//! version 3, which is version 4 without that section: in a version-3 file a kind-6
-//! section is an unknown kind and is skipped, as a version-3 reader would. An old
-//! bundle is read, never misread; any other version is
+//! Version 4 added the optional schedules section (kind 6). Version 5 has the same
+//! bytes and changes what the schedules' initial action means: in version 5 the first
+//! detection takes the current budget table's action at the state the scheduler starts
+//! in (the miss bucket, the initial action's variant, nothing shown), as every later
+//! detection does, where version 4 ran the initial action itself (one action for every
+//! budget); [`Schedules::first_from_table`] tells which. The reader also reads versions
+//! 4 and 3; version 3 is version 4 without the schedules section: in a version-3 file a
+//! kind-6 section is an unknown kind and is skipped, as a version-3 reader would. An
+//! old bundle is read, never misread; any other version is
 //! [`BundleError::UnsupportedVersion`].
 //!
 //! All integers and floats are **little-endian**; `f32` is IEEE-754 binary32. Offsets
@@ -30,7 +35,7 @@
 //! | offset | size | type | field |
 //! |-------:|-----:|------|-------|
 //! | 0  | 4 | u32 | magic `0x4250_5246` — the bytes `"FRPB"`; the byte-swapped value (`"BPRF"`) means a big-endian writer: [`BundleError::WrongEndian`] |
-//! | 4  | 2 | u16 | format version, [`FORMAT_VERSION`] = 4 (the reader also takes [`MIN_FORMAT_VERSION`] = 3) |
+//! | 4  | 2 | u16 | format version, [`FORMAT_VERSION`] = 5 (the reader also takes 4 and [`MIN_FORMAT_VERSION`] = 3) |
 //! | 6  | 2 | u16 | section count `n`, 1 ..= [`MAX_SECTIONS`] |
 //! | 8  | 4 | u32 | total file length in bytes (must equal the input length) |
 //! | 12 | 4 | u32 | CRC-32 (IEEE, as zlib) of the whole file with these 4 bytes taken as zero |
@@ -39,7 +44,7 @@
 //!
 //! | offset | size | type | field |
 //! |-------:|-----:|------|-------|
-//! | 0  | 4 | u32 | kind: 1 thresholds, 2 families, 3 variants, 4 policy, 5 metadata, 6 schedules (version 4); other kinds are skipped (their checksum is still checked) |
+//! | 0  | 4 | u32 | kind: 1 thresholds, 2 families, 3 variants, 4 policy, 5 metadata, 6 schedules (version 4 on); other kinds are skipped (their checksum is still checked) |
 //! | 4  | 4 | u32 | offset of the section body from the start of the file, `>= 16 + 16 n` |
 //! | 8  | 4 | u32 | length of the body in bytes (`offset + length <= file length`) |
 //! | 12 | 4 | u32 | CRC-32 of the body |
@@ -109,7 +114,7 @@
 //! | 8 + 8 i | 4 | u32 | value (string in the pool) |
 //! | 4 + 8 K | … | | string pool |
 //!
-//! ## 6 — Schedules (optional, version 4): per-budget tables of (variant, period), see [`Schedules`] and [`crate::schedule`]
+//! ## 6 — Schedules (optional, version 4 on): per-budget tables of (variant, period), see [`Schedules`] and [`crate::schedule`]
 //!
 //! | offset | size | type | field |
 //! |-------:|-----:|------|-------|
@@ -121,7 +126,7 @@
 //! | 16 | 8 | 2 × f32 | motion edges in pixels per frame, finite, `0 <= e0 <= e1` ([`ContentEdges::motion_px`]) |
 //! | 24 | 8 | 4 × u16 | periods in frames: the first `P` strictly ascending in 1 ..= 255, the rest 0 |
 //! | 32 | 2 | u16 | budget count `K`, 1 ..= [`MAX_BUDGETS`] = 8 |
-//! | 34 | 2 | u16 | initial action `< V · P` (run on the first frame) |
+//! | 34 | 2 | u16 | initial action `< V · P`: version 5, its variant is the current variant before the first detection, which takes the table's action (its period is not used); version 4, run on the first frame |
 //! | 36 + 16 k | 4 | f32 | budget `k`: latency budget in ms, finite, `> 0` ([`BudgetInfo`]) |
 //! | 40 + 16 k | 4 | f32 | slowdown of the target versus the measuring machine, finite, `> 0` |
 //! | 44 + 16 k | 4 | f32 | expected latency per frame in ms, finite, `>= 0` |
@@ -152,8 +157,9 @@ use core::fmt;
 /// The magic number, stored little-endian as the bytes `"FRPB"`.
 pub const MAGIC: u32 = 0x4250_5246;
 /// The format version the writer writes and the newest the reader understands (2 added
-/// the accesses per image, 3 the reference variant, 4 the schedules section).
-pub const FORMAT_VERSION: u16 = 4;
+/// the accesses per image, 3 the reference variant, 4 the schedules section, 5 the
+/// first detection read from the schedule table).
+pub const FORMAT_VERSION: u16 = 5;
 /// The oldest format version the reader understands.
 pub const MIN_FORMAT_VERSION: u16 = 3;
 /// Header length in bytes.
@@ -571,6 +577,8 @@ pub struct Schedules<'a> {
     periods: [u32; MAX_PERIODS],
     period_count: u16,
     initial: ScheduleAction,
+    /// Version 5 on: the first detection reads the table.
+    first_from_table: bool,
     /// `budget_count` records of [`BUDGET_RECORD`] bytes.
     budgets: &'a [u8],
     budget_count: usize,
@@ -612,9 +620,18 @@ impl<'a> Schedules<'a> {
         budget_info(self.budgets.get(off..off.checked_add(BUDGET_RECORD)?)?)
     }
 
-    /// The action of the first frame.
+    /// The initial action: its variant is the scheduler's current variant before the
+    /// first detection; in a version-4 bundle the first frame runs it
+    /// ([`Schedules::first_from_table`]).
     pub const fn initial(&self) -> ScheduleAction {
         self.initial
+    }
+
+    /// True (format version 5 on) when the first detection takes the budget table's
+    /// action at the starting state, as every later one does; false in a version-4
+    /// bundle, whose first frame runs [`Schedules::initial`] under every budget.
+    pub const fn first_from_table(&self) -> bool {
+        self.first_from_table
     }
 
     /// Number of states of one table, `BUCKET_COUNT · V · CONTENT_STATES`.
@@ -754,7 +771,7 @@ impl<'a> Bundle<'a> {
             )?;
         }
         let schedules = match sched {
-            Some(b) => Some(parse_schedules(b, variants.count)?),
+            Some(b) => Some(parse_schedules(b, variants.count, s.version)?),
             None => None,
         };
         Ok(Self {
@@ -982,7 +999,7 @@ fn budget_info(r: &[u8]) -> Option<BudgetInfo> {
     })
 }
 
-fn parse_schedules(b: &[u8], variants: usize) -> Result<Schedules<'_>, BundleError> {
+fn parse_schedules(b: &[u8], variants: usize, version: u16) -> Result<Schedules<'_>, BundleError> {
     let u16_at = |off| rd_u16(b, off).ok_or(BundleError::BadSectionLength);
     let f32_at = |off| rd_f32(b, off).ok_or(BundleError::BadSectionLength);
     let shape = [u16_at(0)?, u16_at(2)?, u16_at(4)?].map(usize::from);
@@ -1060,6 +1077,7 @@ fn parse_schedules(b: &[u8], variants: usize) -> Result<Schedules<'_>, BundleErr
             variant: 0,
             period: 1,
         },
+        first_from_table: version >= 5,
         budgets,
         budget_count,
         tables,

@@ -229,7 +229,7 @@ fn schedules_round_trip() {
     let bytes = scheduled_sample();
     let b = Bundle::parse(&bytes).unwrap();
     assert_eq!(b.version(), FORMAT_VERSION);
-    assert_eq!(FORMAT_VERSION, 4);
+    assert_eq!(FORMAT_VERSION, 5);
     let s = b.schedules().expect("schedules");
     assert_eq!(
         s.edges(),
@@ -308,7 +308,7 @@ fn a_version_3_bundle_is_read_and_never_misread() {
     assert!(b.schedules().is_none());
     exercise(&b);
     // versions the reader does not know, old or new
-    for version in [0, 1, 2, 5, u16::MAX] {
+    for version in [0, 1, 2, 6, u16::MAX] {
         assert_eq!(
             Bundle::parse(&with_version(&scheduled_sample(), version)).unwrap_err(),
             BundleError::UnsupportedVersion,

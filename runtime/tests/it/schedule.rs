@@ -230,7 +230,7 @@ fn the_scheduler_follows_its_tables() {
     );
     let sign = |x: f32| Some(BBox::new(x, 10.0, x + 30.0, 40.0)); // 30 px high: size 1
 
-    // frame 0: the initial action
+    // frame 0: the table at (miss, the initial variant 1, nothing shown): (1, 1)
     assert_eq!(
         s.step(0, TrackState::Idle),
         Decision::Detect {
@@ -358,7 +358,8 @@ fn the_scheduler_follows_its_tables() {
     assert_eq!(s.step(12, TrackState::Held), Decision::Track);
 
     let stats = s.stats();
-    assert_eq!((stats.frames, stats.detections, stats.queries), (13, 6, 5));
+    // every detection read the table, the first too (format 5)
+    assert_eq!((stats.frames, stats.detections, stats.queries), (13, 6, 6));
     s.reset();
     assert_eq!(
         (s.current_variant(), s.current_period(), s.stats().frames),
@@ -373,36 +374,83 @@ fn the_scheduler_follows_its_tables() {
     ));
 }
 
+/// A version-4 bundle is read as written: its first frame runs the schedules' initial
+/// action under every budget, and later detections read the table; the same bytes as
+/// version 5 read the table from the first frame on.
+#[test]
+fn a_version_4_bundle_runs_its_initial_action_first() {
+    let mut v4 = bundle_bytes();
+    v4[4..6].copy_from_slice(&4u16.to_le_bytes());
+    // the file checksum covers the version field
+    let mut crc = frugal_runtime::crc::Crc32::new();
+    crc.update(&v4[..12]);
+    crc.update(&[0; 4]);
+    crc.update(&v4[16..]);
+    let sum = crc.finish().to_le_bytes();
+    v4[12..16].copy_from_slice(&sum);
+    let old = Bundle::parse(&v4).unwrap();
+    assert_eq!(old.version(), 4);
+    assert!(!old.schedules().unwrap().first_from_table());
+    let bytes = bundle_bytes();
+    let new = Bundle::parse(&bytes).unwrap();
+    assert!(new.schedules().unwrap().first_from_table());
+    // budget 1's table says (0, 4) everywhere; the initial action is (1, 1)
+    let mut s = Scheduler::new(old, 1).unwrap();
+    assert!(matches!(
+        s.step(0, TrackState::Idle),
+        Decision::Detect {
+            variant: 1,
+            reason: Trigger::Start
+        }
+    ));
+    assert_eq!((s.current_period(), s.stats().queries), (1, 0));
+    s.detected(Some(0.95));
+    assert!(matches!(
+        s.step(1, TrackState::Held),
+        Decision::Detect { variant: 0, .. }
+    ));
+    assert_eq!((s.current_period(), s.stats().queries), (4, 1));
+    let mut s = Scheduler::new(new, 1).unwrap();
+    assert!(matches!(
+        s.step(0, TrackState::Idle),
+        Decision::Detect {
+            variant: 0,
+            reason: Trigger::Start
+        }
+    ));
+    assert_eq!((s.current_period(), s.stats().queries), (4, 1));
+}
+
 #[test]
 fn frame_numbers_wrap() {
     let bytes = bundle_bytes();
     let mut s = Scheduler::new(Bundle::parse(&bytes).unwrap(), 1).unwrap();
     let start = u32::MAX - 1;
+    // budget 1 says (0, 4) from the first frame on
     assert!(matches!(
         s.step(start, TrackState::Idle),
-        Decision::Detect { .. }
+        Decision::Detect { variant: 0, .. }
     ));
+    assert_eq!(s.current_period(), 4);
     s.detected(Some(0.95));
     s.shown(start, 1, Some(BBox::new(0.0, 0.0, 10.0, 10.0)));
-    // initial period 1: the next frame is detected, and budget 1 says (0, 4)
-    assert!(matches!(
-        s.step(start.wrapping_add(1), TrackState::Held),
-        Decision::Detect { .. }
-    ));
-    s.shown(
-        start.wrapping_add(1),
-        1,
-        Some(BBox::new(1.0, 0.0, 11.0, 10.0)),
-    );
-    assert_eq!(s.content().motion, 1);
-    for f in 2..5u32 {
+    for f in 1..4u32 {
+        assert!(!s.due(start.wrapping_add(f)));
         assert_eq!(
             s.step(start.wrapping_add(f), TrackState::Held),
             Decision::Track
         );
+        s.shown(
+            start.wrapping_add(f),
+            1,
+            Some(BBox::new(f as f32, 0.0, 10.0 + f as f32, 10.0)),
+        );
     }
+    // across the wrap: one pixel per frame, and the period has passed at start + 4
+    assert_eq!(s.content().motion, 1);
+    assert!(s.due(start.wrapping_add(4)));
     assert!(matches!(
-        s.step(start.wrapping_add(5), TrackState::Held),
+        s.step(start.wrapping_add(4), TrackState::Held),
         Decision::Detect { .. }
     ));
 }
@@ -503,17 +551,12 @@ fn a_detection_is_due_on_the_first_frame_and_when_the_period_has_passed() {
     let bytes = bundle_bytes();
     let mut s = Scheduler::new(Bundle::parse(&bytes).unwrap(), 1).unwrap();
     assert!(s.due(0) && s.due(7), "nothing detected yet");
+    // budget 1: every state (0, every 4), the first detection too
     assert!(matches!(
-        s.step(0, TrackState::Idle),
+        s.step(1, TrackState::Idle),
         Decision::Detect { .. }
     ));
     s.detected(Some(0.95));
-    // budget 1: every state (0, every 4) after the initial (1, every 1)
-    assert!(s.due(1), "the initial period is 1");
-    assert!(matches!(
-        s.step(1, TrackState::Held),
-        Decision::Detect { .. }
-    ));
     assert_eq!(s.current_period(), 4);
     for f in 2..4 {
         assert!(!s.due(f), "frame {f}");
@@ -533,21 +576,21 @@ fn a_detection_is_due_on_the_first_frame_and_when_the_period_has_passed() {
 
 #[test]
 fn a_scheduled_pilot_detects_every_period_and_reports_what_it_shows() {
-    // budget 1: (0, 4) everywhere after the initial (1, 1)
+    // budget 1: (0, 4) everywhere, from the first frame on
     let (run, contents) = fly_scheduled(12, 1, &[], 0.5);
     let detected: Vec<usize> = (0..run.len())
         .filter(|&i| matches!(run[i], Decision::Detect { .. }))
         .collect();
-    assert_eq!(detected, [0, 1, 5, 9], "{run:?}");
+    assert_eq!(detected, [0, 4, 8], "{run:?}");
     assert!(matches!(
         run[0],
         Decision::Detect {
-            variant: 1,
+            variant: 0,
             reason: Trigger::Start
         }
     ));
     assert!(matches!(
-        run[9],
+        run[8],
         Decision::Detect {
             variant: 0,
             reason: Trigger::Periodic
