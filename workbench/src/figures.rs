@@ -57,6 +57,10 @@ pub fn collect(run: &Path) -> Figures {
             put("variants.fastest_ms".into(), Some(format!("{lo:.2}")));
             put("variants.slowest_ms".into(), Some(format!("{hi:.2}")));
         }
+        put(
+            "device.reference_ms".into(),
+            f(&p["reference"]["median_ms"], 2),
+        );
         if let Some(front) = p["fronts"]["map"].as_array() {
             let names: Vec<&str> = front.iter().filter_map(Value::as_str).collect();
             put("front.map".into(), Some(names.join(" → ")));
@@ -91,6 +95,14 @@ pub fn collect(run: &Path) -> Figures {
                 s["f1_loss_vs_static"].as_f64().map(|l| signed(-100.0 * l)),
             );
         }
+    }
+    if let Some(p) = read_json(&run.join("budget/policy.json")) {
+        let c = &p["budget"]["config"];
+        put("device.slowdown".into(), f(&c["slowdown"], 2));
+        put(
+            "device.device_reference_ms".into(),
+            f(&c["device_reference_ms"], 1),
+        );
     }
     for (set, dir) in [("test", "budget"), ("heldout", "budget/heldout-1")] {
         if let Some(scores) = read_json(&run.join(dir).join("budget.json")) {

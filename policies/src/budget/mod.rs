@@ -69,7 +69,8 @@ pub struct BudgetConfig {
     /// Device time over measured time: the fallback when no reference is known; once
     /// the budget stage has scaled a log, the slowdown it used.
     pub slowdown: f64,
-    /// Detect-every-`N` choices, ascending, 1..=255 (at most 4).
+    /// Detect-every-`N` choices, strictly ascending from 1 (the static baseline detects
+    /// every frame), each at most 255 (at most 4).
     pub periods: Vec<u32>,
     /// `κ`: reward lost by switching variants (in frames of F1).
     pub switch_cost: f64,
@@ -233,14 +234,14 @@ impl BudgetConfig {
         {
             return bad("device_reference_ms", "must be finite and > 0 when given");
         }
-        if self.periods.is_empty()
+        if self.periods.first() != Some(&1)
             || self.periods.len() > frugal_runtime::schedule::MAX_PERIODS
             || self.periods.windows(2).any(|w| w[0] >= w[1])
             || self.periods.iter().any(|&p| p == 0 || p > 255)
         {
             return bad(
                 "periods",
-                "1 to 4 periods, strictly ascending, each in 1..=255",
+                "1 to 4 periods, strictly ascending from 1 (static detects every frame), each at most 255",
             );
         }
         if !(0.0..1.0).contains(&self.gamma) {

@@ -672,3 +672,28 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
         assert!(t1.sap50 >= t0.sap50 - 1e-12, "{t1:?}");
     }
 }
+
+/// The static baseline detects every frame, so the periods must start at 1; a bad
+/// list names the file and the key.
+#[test]
+fn a_period_list_must_start_at_one_and_ascend() {
+    let path = std::path::Path::new("budget.toml");
+    let ok = BudgetConfig::default();
+    ok.check(path).unwrap();
+    for periods in [
+        vec![2, 4, 8, 16],
+        vec![],
+        vec![1, 4, 4],
+        vec![1, 2, 4, 8, 16],
+    ] {
+        let cfg = BudgetConfig {
+            periods: periods.clone(),
+            ..BudgetConfig::default()
+        };
+        let e = cfg.check(path).unwrap_err().to_string();
+        assert!(
+            e.contains("budget.toml") && e.contains("periods") && e.contains("from 1"),
+            "{periods:?}: {e}"
+        );
+    }
+}
