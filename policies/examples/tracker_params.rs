@@ -11,7 +11,6 @@
 //!
 //! Every sign of every `steps · gap`-th frame starts a track on its true box; the IoU is
 //! taken against the best-matching true box of the same class on the last frame.
-#![allow(unsafe_code)] // one libc call: clock_gettime(CLOCK_THREAD_CPUTIME_ID)
 
 use frugal_data::Dataset;
 use frugal_data::dataset::Split;
@@ -19,16 +18,14 @@ use frugal_runtime::geom::FrameRef;
 use frugal_runtime::track::{LkParams, Pyramid, Tracker, TrackerParams};
 use std::path::Path;
 
-/// The calling thread's CPU time, in nanoseconds.
+/// The calling thread's time on a CPU, in nanoseconds (Linux
+/// `/proc/thread-self/schedstat`; 0 where there is none).
 fn cpu_ns() -> u64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid, writable timespec; the clock id is a constant.
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    assert_eq!(rc, 0, "clock_gettime(CLOCK_THREAD_CPUTIME_ID) failed");
-    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
+    let stat = std::fs::read_to_string("/proc/thread-self/schedstat").unwrap_or_default();
+    stat.split_whitespace()
+        .next()
+        .and_then(|t| t.parse().ok())
+        .unwrap_or(0)
 }
 
 fn with_lk(win_radius: usize, levels: usize, max_iters: u32, epsilon: f32) -> TrackerParams {

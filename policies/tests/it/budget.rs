@@ -8,7 +8,7 @@ use frugal_policies::budget::{
     BudgetConfig, BudgetPolicies, SearchLevel, VideoCache, train_budget,
 };
 use frugal_policies::budget_eval::{
-    BudgetStrategy, TuneSet, budget_scores, search_tables, stream_all, stream_strategy,
+    BudgetRun, BudgetStrategy, TuneSet, budget_scores, search_tables, stream_all, stream_strategy,
 };
 use frugal_policies::eval::{EvalConfig, TRACK_POINTS, TrackerCost};
 use frugal_policies::replay::{Frames, VideoLog};
@@ -26,6 +26,25 @@ const COST: TrackerCost = TrackerCost {
     init_ms: 0.1,
     samples: (0, 0, 0),
 };
+
+/// One clock run of `strategy` under the fixed tracker costs, boxes matched at IoU 0.5.
+#[allow(clippy::too_many_arguments)]
+fn stream(
+    log: &frugal_policies::ReplayLog,
+    video: &VideoLog,
+    frames: &dyn Frames,
+    pol: &BudgetPolicies,
+    k: usize,
+    bundle: &[u8],
+    strategy: BudgetStrategy,
+    clock_run: u32,
+    cache: &VideoCache,
+) -> BudgetRun {
+    stream_strategy(
+        log, video, frames, COST, pol, k, bundle, strategy, 0.5, clock_run, cache,
+    )
+    .unwrap()
+}
 
 /// The fixture variants (2, 5, 10 ms) on a device 3× slower, three budgets.
 fn config() -> BudgetConfig {
@@ -152,20 +171,17 @@ fn the_runtime_pilot_runs_the_budget_policy_as_the_evaluation() {
     let caches: Vec<VideoCache> = videos.iter().map(|_| VideoCache::default()).collect();
     for k in 0..pol.config.budgets_ms.len() {
         for (video, cache) in videos.iter().zip(&caches) {
-            let run = stream_strategy(
+            let run = stream(
                 &log,
                 video,
                 &frames,
-                COST,
                 pol,
                 k,
                 &bytes,
                 BudgetStrategy::Budget,
-                0.5,
                 0,
                 cache,
-            )
-            .unwrap();
+            );
             assert_eq!(run.run.outputs.len(), video.frames.len());
             let (w, h) = (video.width as usize, video.height as usize);
             let need = Pyramid::required_len(w, h, levels).unwrap();
@@ -306,15 +322,12 @@ fn a_shared_tracking_cache_changes_no_stream() {
         for k in 0..pol.config.budgets_ms.len() {
             for s in BudgetStrategy::ALL {
                 for c in 0..pol.config.clock_runs {
-                    let stream = |cache: &VideoCache| {
-                        stream_strategy(
-                            &log, video, &frames, COST, &pol, k, &bytes, s, 0.5, c, cache,
-                        )
-                        .unwrap()
+                    let run_with = |cache: &VideoCache| {
+                        stream(&log, video, &frames, &pol, k, &bytes, s, c, cache)
                     };
-                    let fresh = stream(&VideoCache::default());
+                    let fresh = run_with(&VideoCache::default());
                     let before = shared.steps();
-                    let cached = stream(&shared);
+                    let cached = run_with(&shared);
                     hits += usize::from(shared.steps() == before && !fresh.run.outputs.is_empty());
                     assert_eq!(
                         fresh.run, cached.run,
@@ -348,20 +361,17 @@ fn a_periodic_detection_frame_is_charged_no_tracking() {
     for (k, video) in
         (0..pol.config.budgets_ms.len()).flat_map(|k| log.split(Split::Test).map(move |v| (k, v)))
     {
-        let r = stream_strategy(
+        let r = stream(
             &log,
             video,
             &frames,
-            COST,
             &pol,
             k,
             &bytes,
             BudgetStrategy::StaticTracker,
-            0.5,
             0,
             &VideoCache::default(),
-        )
-        .unwrap();
+        );
         let mut held = 0usize;
         for (i, o) in r.run.outputs.iter().enumerate() {
             let ms = o.device_ms / slowdown;
@@ -417,10 +427,7 @@ fn each_clock_run_starts_every_strategy_at_its_own_phase() {
         pol.config.phases = phases;
         for c in 0..pol.config.clock_runs {
             for s in [BudgetStrategy::StaticTracker, BudgetStrategy::Budget] {
-                let run = stream_strategy(
-                    &log, video, &frames, COST, &pol, 1, &bytes, s, 0.5, c, &cache,
-                )
-                .unwrap();
+                let run = stream(&log, video, &frames, &pol, 1, &bytes, s, c, &cache);
                 let start = if phases { (c % longest) as usize } else { 0 };
                 assert_eq!(run.start, start, "{s:?} run {c}");
                 // every frame from the start on is processed or skipped, none before
@@ -439,20 +446,17 @@ fn each_clock_run_starts_every_strategy_at_its_own_phase() {
     pol.config.phases = true;
     let runs: Vec<_> = (0..3)
         .map(|c| {
-            stream_strategy(
+            stream(
                 &log,
                 video,
                 &frames,
-                COST,
                 &pol,
                 1,
                 &bytes,
                 BudgetStrategy::StaticTracker,
-                0.5,
                 c,
                 &cache,
             )
-            .unwrap()
         })
         .collect();
     let scores = budget_scores(
