@@ -364,8 +364,7 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
         )?);
         tick();
     }
-    let reference = dets.pop();
-    drop(reference);
+    drop(dets.pop()); // the reference's session; its files go next
     std::fs::remove_dir_all(&reference_dir).map_err(|e| ParetoError::io(&reference_dir, e))?;
     let mut reference_ms = Vec::with_capacity(timed.len());
     for f in found.iter_mut().flatten() {

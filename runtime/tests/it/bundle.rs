@@ -284,7 +284,7 @@ fn schedules_round_trip() {
 }
 
 /// `bytes` with its version field set to `version` and the file checksum fixed.
-fn with_version(bytes: &[u8], version: u16) -> Vec<u8> {
+pub(super) fn with_version(bytes: &[u8], version: u16) -> Vec<u8> {
     let mut b = bytes.to_vec();
     b[4..6].copy_from_slice(&version.to_le_bytes());
     fix_checksums(&mut b);

@@ -746,12 +746,9 @@ impl Ctx {
         let variants = self.dir("pareto").join("variants.json");
         let reference = frugal_policies::variants::VariantsFile::read(&variants)?.reference_ms;
         let budget = &self.config.budget;
-        let slowdown = match reference {
-            Some(h) if f.device == budget.device && budget.device_reference_ms.is_some() => {
-                budget.device_slowdown(Some(h)).to_string()
-            }
-            _ => String::new(),
-        };
+        let slowdown = reference
+            .filter(|_| f.device == budget.device && budget.device_reference_ms.is_some())
+            .map(|h| budget.device_slowdown(Some(h)).to_string());
         let common = |perception: &str| {
             let mut a: Vec<String> = vec!["fly".into()];
             for m in &f.mazes {
@@ -777,8 +774,8 @@ impl Ctx {
                 "--out".into(),
                 arg(&out.join(perception)),
             ]);
-            if !slowdown.is_empty() {
-                a.extend(["--slowdown".into(), slowdown.clone()]);
+            if let Some(s) = &slowdown {
+                a.extend(["--slowdown".into(), s.clone()]);
             }
             a
         };
