@@ -89,8 +89,9 @@ fn on_a_recorded_flight_the_pilot_issues_the_simulators_commands_on_the_same_fra
     assert_eq!(Some(summary.frames - 1), flown.last().map(|c| c.0));
 }
 
-/// A detector that sees the maze's signs at 160×90 after a minute of training: wider
-/// than the tiny profile's, more frames, more epochs.
+/// A detector that sees the maze's signs at 160×90 after about a minute of training:
+/// wider than the tiny profile's, more frames, ten epochs at twice the default learning
+/// rate (validation mAP@0.5 0.77, against 0.72 after twenty epochs at the default rate).
 const SIGHTED: &str = r#"profile = "tiny"
 [data]
 videos_per_combo = 16
@@ -104,7 +105,8 @@ backbone = [
 rpn_channels = 16
 roi_hidden = 64
 [detector.train]
-epochs = 20
+epochs = 10
+lr = 0.002
 train_frames = 0
 val_frames = 12
 batch_size = 4

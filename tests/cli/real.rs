@@ -260,7 +260,7 @@ fn full_hd_frames_train_and_evaluate_at_a_smaller_input_with_boxes_in_source_pix
         let small = image::open(&file).expect("frame").to_rgb8();
         sx = 1920.0 / f64::from(small.width());
         sy = 1080.0 / f64::from(small.height());
-        image::imageops::resize(&small, 1920, 1080, image::imageops::FilterType::Triangle)
+        image::imageops::resize(&small, 1920, 1080, image::imageops::FilterType::Nearest)
             .save(&file)
             .expect("save");
         img["width"] = 1920.into();
