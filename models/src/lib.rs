@@ -27,10 +27,11 @@
 //! confusion matrix) does not use `tch` at all. [`train`] and [`eval`] are the library
 //! side of `frugal train` / `frugal eval`.
 //!
-//! (The example is compiled but not run by `cargo test`: doctest binaries are built in
-//! a temporary folder where the loader cannot find libtorch.)
+//! The example is not a doctest: doctest binaries are built in a temporary folder where
+//! the loader cannot find libtorch (even a `no_run` one is linked into a binary that
+//! runs). The same code runs as the test `crate_docs_example` (`tests/tests.rs`).
 //!
-//! ```no_run
+//! ```ignore
 //! use frugal_models::{FasterRcnn, config::ModelConfig};
 //! use frugal_runtime::FrameRef;
 //! tch::manual_seed(0);

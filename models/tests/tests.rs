@@ -12,6 +12,16 @@ use rand::SeedableRng;
 use std::path::Path;
 use tch::{Device, Kind, Tensor};
 
+/// The crate docs' example, run here (doctests cannot load libtorch).
+#[test]
+fn crate_docs_example() {
+    tch::manual_seed(0);
+    let model = FasterRcnn::new(ModelConfig::default(), tch::Device::Cpu).unwrap();
+    let pixels = vec![128u8; 96 * 64 * 3];
+    let dets = model.detect(FrameRef::new(96, 64, &pixels).unwrap());
+    assert!(dets.iter().all(|d| (0.0..=1.0).contains(&d.score)));
+}
+
 fn tiny_model(num_classes: usize) -> ModelConfig {
     let block = |out_channels, stride| BlockConfig {
         out_channels,
