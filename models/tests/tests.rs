@@ -16,7 +16,7 @@ use tch::{Device, Kind, Tensor};
 #[test]
 fn crate_docs_example() {
     tch::manual_seed(0);
-    let model = FasterRcnn::new(ModelConfig::default(), tch::Device::Cpu).unwrap();
+    let model = FasterRcnn::new(ModelConfig::default(), Device::Cpu).unwrap();
     let pixels = vec![128u8; 96 * 64 * 3];
     let dets = model.detect(FrameRef::new(96, 64, &pixels).unwrap());
     assert!(dets.iter().all(|d| (0.0..=1.0).contains(&d.score)));
