@@ -15,6 +15,8 @@
 //!   budget, switchable in flight ([`Scheduler::set_budget`]);
 //! - [`pilot`]: the whole per-frame loop, controller (or scheduler) plus one tracker
 //!   per detected sign ([`pilot::Pilot`]);
+//! - [`forecast`]: boxes moved at their velocity to the frame they are used on
+//!   ([`Forecaster`]), for outputs that arrive frames late;
 //! - [`track`]: the KLT [`Tracker`] (Shi-Tomasi + pyramidal Lucas-Kanade + median flow);
 //! - [`geom`]: boxes, detections, frames, the [`Detector`] trait.
 //!
@@ -62,6 +64,7 @@ pub mod cnn;
 pub mod content;
 pub mod controller;
 pub mod crc;
+pub mod forecast;
 pub mod geom;
 #[cfg(feature = "onnx")]
 pub mod onnx;
@@ -73,6 +76,7 @@ pub mod track;
 
 pub use bundle::{Bundle, BundleError, Schedules, Thresholds};
 pub use controller::{Access, Controller, Decision, Observation, TrackStatus, Trigger};
+pub use forecast::{ForecastParams, Forecaster};
 pub use geom::{BBox, ClassId, Detection, Detector, FrameRef, VariantId};
 pub use schedule::{
     BudgetInfo, Content, ContentEdges, ScheduleAction, ScheduleError, Scheduler, TrackState,

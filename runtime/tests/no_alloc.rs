@@ -395,3 +395,44 @@ fn ten_thousand_scheduled_pilot_frames_allocate_nothing() {
         "tracked {tracked_frames}, detections {detections}"
     );
 }
+
+#[test]
+fn ten_thousand_forecasts_allocate_nothing() {
+    use frugal_runtime::{ForecastParams, Forecaster};
+    let mut f = Forecaster::new(ForecastParams::DEFAULT);
+    let mut out = [Detection::default(); 4];
+    let mut moved = 0usize;
+    COUNTING.with(|c| c.set(true));
+    for frame in 0..10_000u32 {
+        let x = (frame % 200) as f32 * 3.0;
+        let shown = [
+            Detection {
+                bbox: frugal_runtime::BBox::new(x, 10.0, x + 20.0, 30.0),
+                score: 0.9,
+                class: 1,
+            },
+            Detection {
+                bbox: frugal_runtime::BBox::new(300.0, x, 330.0, x + 25.0),
+                score: 0.8,
+                class: 2,
+            },
+        ];
+        // an output every other frame, used on the two frames after it
+        if frame % 2 == 0 {
+            f.update(frame, &shown[..(frame as usize / 2) % 3]);
+        }
+        let n = f.at(frame + 1, &mut out);
+        moved += out[..n]
+            .iter()
+            .filter(|d| d.bbox.x1 != 300.0 && d.bbox.x1 > x)
+            .count();
+    }
+    COUNTING.with(|c| c.set(false));
+    let allocations = ALLOCATIONS.load(Ordering::SeqCst);
+    assert_eq!(
+        allocations, 0,
+        "{allocations} allocations in 10,000 forecasts"
+    );
+    // the moving box is forecast ahead of where it was shown
+    assert!(moved > 1_000, "{moved} boxes moved ahead");
+}

@@ -121,6 +121,16 @@ pub struct BudgetConfig {
     pub search_min_gain: f64,
     /// What one move of the search sets ([`SearchLevel`]).
     pub search_level: SearchLevel,
+    /// Streaming AP scores each frame against the latest output moved at its boxes'
+    /// velocities to that frame (the runtime's [`frugal_runtime::Forecaster`], fed
+    /// every output in processing order), as a drone that forecasts what it shows
+    /// would be scored; every strategy alike. `false`: the output as it was shown on
+    /// its own frame.
+    pub forecast: bool,
+    /// The forecaster's weight of the newest displacement in a box's velocity, in
+    /// (0, 1] ([`frugal_runtime::ForecastParams::alpha`]; its other parameters are
+    /// [`frugal_runtime::ForecastParams::DEFAULT`]'s).
+    pub forecast_alpha: f32,
 }
 
 /// What one move of the search on the clock sets.
@@ -187,6 +197,8 @@ impl Default for BudgetConfig {
             search_rounds: 16,
             search_min_gain: 0.0,
             search_level: SearchLevel::Content,
+            forecast: true,
+            forecast_alpha: frugal_runtime::ForecastParams::DEFAULT.alpha,
         }
     }
 }
@@ -243,6 +255,9 @@ impl BudgetConfig {
                 "periods",
                 "1 to 4 periods, strictly ascending from 1 (static detects every frame), each at most 255",
             );
+        }
+        if !(self.forecast_alpha > 0.0 && self.forecast_alpha <= 1.0) {
+            return bad("forecast_alpha", "must be in (0, 1]");
         }
         if !(0.0..1.0).contains(&self.gamma) {
             return bad("gamma", "must be in [0, 1)");
@@ -486,5 +501,15 @@ impl BudgetPolicies {
         (0..p)
             .find(|&i| self.action_ms[self.config.action(v, i)] <= budget_ms)
             .unwrap_or(p - 1)
+    }
+}
+
+impl BudgetConfig {
+    /// The forecaster streaming AP applies ([`BudgetConfig::forecast`]).
+    pub fn forecaster(&self) -> Option<frugal_runtime::ForecastParams> {
+        self.forecast.then_some(frugal_runtime::ForecastParams {
+            alpha: self.forecast_alpha,
+            ..frugal_runtime::ForecastParams::DEFAULT
+        })
     }
 }

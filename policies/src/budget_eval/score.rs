@@ -5,8 +5,9 @@ use crate::budget::BudgetPolicies;
 use crate::error::Result;
 use crate::replay::{ReplayLog, VideoLog};
 use crate::scoring::{ground_truth, scenario_groups};
-use crate::stream::{StreamRun, StreamTiming, sap, streaming_images, timing};
+use crate::stream::{StreamRun, StreamTiming, sap, streaming_images_with, timing};
 use frugal_models::metrics::{ImageResult, Interpolation, evaluate};
+use frugal_runtime::ForecastParams;
 use serde::{Deserialize, Serialize};
 
 use super::{BudgetRun, BudgetStrategy};
@@ -45,6 +46,7 @@ pub(super) fn score_runs(
     runs: &[(&VideoLog, &BudgetRun)],
     fps: f64,
     iou: f32,
+    forecast: Option<ForecastParams>,
 ) -> Scored {
     let mut images: Vec<ImageResult> = Vec::new();
     let mut offline: Vec<ImageResult> = Vec::new();
@@ -60,7 +62,7 @@ pub(super) fn score_runs(
         let tr: Vec<_> = (r.start..video.frames.len())
             .map(|f| ground_truth(video, f))
             .collect();
-        images.extend(streaming_images(arr, &tr, &r.run));
+        images.extend(streaming_images_with(arr, &tr, &r.run, forecast));
         for o in &r.run.outputs {
             offline.push(ImageResult {
                 detections: o.shown.clone(),
@@ -127,7 +129,13 @@ pub fn budget_scores(
                                     rs.iter().filter(|r| r.video == v.id).map(move |r| (*v, r))
                                 })
                                 .collect();
-                            score_runs(log.classes, &sel, pol.config.fps, iou)
+                            score_runs(
+                                log.classes,
+                                &sel,
+                                pol.config.fps,
+                                iou,
+                                pol.config.forecaster(),
+                            )
                         })
                         .clone();
                     BudgetScore {

@@ -35,11 +35,11 @@ use crate::error::{PolicyError, Result};
 use crate::replay::{Frames, MemoryFrames, ReplayLog, VideoLog};
 use crate::scoring::TrackerCost;
 use crate::scoring::ground_truth;
-use crate::stream::{nearest_rank, streaming_images};
+use crate::stream::{nearest_rank, streaming_images_with};
 use frugal_models::metrics::{Interpolation, ap_of_records, class_records};
-use frugal_runtime::ClassId;
 use frugal_runtime::bundle::Thresholds;
 use frugal_runtime::schedule::CONTENT_STATES;
+use frugal_runtime::{ClassId, ForecastParams};
 use serde::{Deserialize, Serialize};
 use std::sync::Mutex;
 
@@ -114,6 +114,7 @@ struct Clock<'a> {
     cost: TrackerCost,
     thresholds: Thresholds,
     iou: f32,
+    forecast: Option<ForecastParams>,
 }
 
 /// Runs `[video][clock run]`.
@@ -180,7 +181,7 @@ impl Clock<'_> {
             .zip(&runs)
             .flat_map(|((_, v, _, _), rs)| rs.iter().map(move |(_, r)| (*v, r)))
             .collect();
-        Ok(score_runs(self.classes, &pairs, fps, self.iou).2)
+        Ok(score_runs(self.classes, &pairs, fps, self.iou, self.forecast).2)
     }
 
     fn run_fig(&self, v: &VideoLog, arr: &[f64], r: &BudgetRun) -> RunFig {
@@ -188,7 +189,7 @@ impl Clock<'_> {
         let truth: Vec<_> = (r.start..v.frames.len())
             .map(|f| ground_truth(v, f))
             .collect();
-        let images = streaming_images(arr, &truth, &r.run);
+        let images = streaming_images_with(arr, &truth, &r.run, self.forecast);
         let mut queried: Vec<(u32, u32)> = Vec::new();
         let mut states = r.queried.clone();
         states.sort_unstable();
@@ -329,6 +330,7 @@ pub fn search_tables(
         cost,
         thresholds,
         iou,
+        forecast: pol.config.forecaster(),
     };
     let cfg: BudgetConfig = pol.config.clone();
     let budgets = cfg.budgets_ms.len();
