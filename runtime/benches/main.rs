@@ -207,6 +207,36 @@ fn schedule<M: Measurement + 'static>(c: &mut Criterion<M>, suffix: &str) {
     });
 }
 
+fn forecast<M: Measurement + 'static>(c: &mut Criterion<M>, suffix: &str) {
+    use frugal_runtime::{Detection, ForecastParams, Forecaster};
+    // Outputs of four signs moving across the view, one output every other frame, each
+    // read on the two frames after it: one update and two reads per output.
+    let outputs: Vec<[Detection; 4]> = (0..1000u32)
+        .map(|f| {
+            core::array::from_fn(|k| {
+                let x = ((f * (3 + k as u32)) % 400) as f32;
+                Detection {
+                    bbox: BBox::new(x, 30.0 * k as f32, x + 24.0, 30.0 * k as f32 + 24.0),
+                    score: 0.9,
+                    class: k as u16 % 2,
+                }
+            })
+        })
+        .collect();
+    let mut fc = Forecaster::new(ForecastParams::DEFAULT);
+    let mut out = [Detection::default(); 4];
+    let mut i = 0usize;
+    c.bench_function(&format!("forecast/update+2_reads_4_boxes{suffix}"), |b| {
+        b.iter(|| {
+            i = (i + 1) % outputs.len();
+            let frame = 2 * i as u32;
+            fc.update(frame, black_box(&outputs[i]));
+            let n = fc.at(frame + 1, &mut out) + fc.at(frame + 2, &mut out);
+            black_box(n)
+        })
+    });
+}
+
 fn tracker<M: Measurement + 'static>(c: &mut Criterion<M>, suffix: &str) {
     let clip = make_clip(&ClipSpec::standard(5, 30));
     let (w, h) = (clip.width, clip.height);
@@ -254,12 +284,14 @@ fn tracker<M: Measurement + 'static>(c: &mut Criterion<M>, suffix: &str) {
 fn wall(c: &mut Criterion) {
     controller(c, "");
     schedule(c, "");
+    forecast(c, "");
     tracker(c, "");
 }
 
 fn cpu(c: &mut Criterion<ThreadCpuTime>) {
     controller(c, "/cpu");
     schedule(c, "/cpu");
+    forecast(c, "/cpu");
     tracker(c, "/cpu");
 }
 
