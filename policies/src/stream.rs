@@ -315,6 +315,19 @@ mod tests {
         }
     }
 
+    /// `n` frames of one box moving `speed` px per frame to the right.
+    fn moving_truth(n: usize, speed: f32) -> Vec<ImageResult> {
+        (0..n)
+            .map(|f| ImageResult {
+                truth: vec![frugal_models::metrics::Truth {
+                    class: 0,
+                    bbox: det(speed * f as f32).bbox,
+                }],
+                ..ImageResult::default()
+            })
+            .collect()
+    }
+
     #[test]
     fn the_latest_frame_rule_skips_what_arrived_while_busy() {
         let arr = arrivals(6, 10.0); // 0, 100, ..., 500 ms
@@ -347,15 +360,7 @@ mod tests {
         // frame periods later: shown 3 frames late, 18 px behind (IoU < 0.5)
         let n = 40;
         let arr = arrivals(n, 30.0);
-        let truth: Vec<ImageResult> = (0..n)
-            .map(|f| ImageResult {
-                truth: vec![frugal_models::metrics::Truth {
-                    class: 0,
-                    bbox: det(6.0 * f as f32).bbox,
-                }],
-                ..ImageResult::default()
-            })
-            .collect();
+        let truth = moving_truth(n, 6.0);
         let run = simulate(&arr, FrameRule::Latest, 1.0, |f| {
             Ok((vec![det(6.0 * f as f32)], 2.5 * 1000.0 / 30.0))
         })
@@ -391,15 +396,7 @@ mod tests {
         // a box moving 10 px per frame; a perfect detector that takes 2.5 frame periods
         let n = 30;
         let arr = arrivals(n, 30.0);
-        let truth: Vec<ImageResult> = (0..n)
-            .map(|f| ImageResult {
-                truth: vec![frugal_models::metrics::Truth {
-                    class: 0,
-                    bbox: det(10.0 * f as f32).bbox,
-                }],
-                ..ImageResult::default()
-            })
-            .collect();
+        let truth = moving_truth(n, 10.0);
         let perfect = |f: usize| Ok((vec![det(10.0 * f as f32)], 2.5 * 1000.0 / 30.0));
         let offline: Vec<ImageResult> = truth
             .iter()
