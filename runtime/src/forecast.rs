@@ -79,15 +79,6 @@ const NO_BOX: Detection = Detection {
     class: 0,
 };
 
-fn shifted(b: &BBox, dx: f32, dy: f32) -> BBox {
-    BBox {
-        x1: b.x1 + dx,
-        y1: b.y1 + dy,
-        x2: b.x2 + dx,
-        y2: b.y2 + dy,
-    }
-}
-
 fn finite_or_zero(x: f32) -> f32 {
     if x.is_finite() { x } else { 0.0 }
 }
@@ -149,7 +140,7 @@ impl Forecaster {
                 .take(self.len)
                 .filter(|(q, _)| q.class == d.class)
             {
-                let moved = shifted(&q.bbox, v[0] * g, v[1] * g);
+                let moved = q.bbox.translated(v[0] * g, v[1] * g);
                 let iou = moved.iou(&d.bbox).max(q.bbox.iou(&d.bbox));
                 if iou >= self.params.min_iou && best.is_none_or(|b| iou > b.0) {
                     best = Some((iou, q, *v));
@@ -189,7 +180,7 @@ impl Forecaster {
             .zip(out.iter_mut())
         {
             *o = Detection {
-                bbox: shifted(&d.bbox, v[0] * ahead, v[1] * ahead),
+                bbox: d.bbox.translated(v[0] * ahead, v[1] * ahead),
                 ..*d
             };
             n += 1;

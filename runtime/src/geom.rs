@@ -49,6 +49,11 @@ impl BBox {
         self.width() * self.height()
     }
 
+    /// The same box moved by `(dx, dy)`.
+    pub const fn translated(&self, dx: f32, dy: f32) -> Self {
+        Self::new(self.x1 + dx, self.y1 + dy, self.x2 + dx, self.y2 + dy)
+    }
+
     /// Centre point `(cx, cy)`.
     pub fn center(&self) -> (f32, f32) {
         ((self.x1 + self.x2) * 0.5, (self.y1 + self.y2) * 0.5)

@@ -228,6 +228,14 @@ impl BudgetConfig {
         }
     }
 
+    /// The forecaster streaming AP applies ([`BudgetConfig::forecast`]).
+    pub fn forecaster(&self) -> Option<frugal_runtime::ForecastParams> {
+        self.forecast.then_some(frugal_runtime::ForecastParams {
+            alpha: self.forecast_alpha,
+            ..frugal_runtime::ForecastParams::DEFAULT
+        })
+    }
+
     /// Checks every value; `path` names the file in the error.
     pub fn check(&self, path: &std::path::Path) -> Result<()> {
         let bad = |field: &str, m: &str| Err(PolicyError::invalid(path, field, m.to_string()));
@@ -501,15 +509,5 @@ impl BudgetPolicies {
         (0..p)
             .find(|&i| self.action_ms[self.config.action(v, i)] <= budget_ms)
             .unwrap_or(p - 1)
-    }
-}
-
-impl BudgetConfig {
-    /// The forecaster streaming AP applies ([`BudgetConfig::forecast`]).
-    pub fn forecaster(&self) -> Option<frugal_runtime::ForecastParams> {
-        self.forecast.then_some(frugal_runtime::ForecastParams {
-            alpha: self.forecast_alpha,
-            ..frugal_runtime::ForecastParams::DEFAULT
-        })
     }
 }
