@@ -21,7 +21,9 @@
 //!   `C` device-ms earns `Σ F1 − λ (C / budget − L) − κ [variant changed]`; `λ ≥ 0`
 //!   is the smallest (bisection) whose policy, rolled out on the training videos,
 //!   spends at most the budget per frame; `κ` ([`BudgetConfig::switch_cost`]) pays
-//!   for switching variants. Unlike the paper's `w / r(s')^α`, where `α` trades
+//!   for switching variants. The constraint is on the average: one action may cost
+//!   up to [`BudgetConfig::burst`] times the budget ([`BudgetPolicies::choices`]), so
+//!   the policy can spend on hard content what it saves on easy content. Unlike the paper's `w / r(s')^α`, where `α` trades
 //!   accuracy for cost at a rate nobody can read off a latency requirement, the
 //!   budget is the requirement itself, in milliseconds on the device.
 //!
@@ -131,6 +133,15 @@ pub struct BudgetConfig {
     /// (0, 1] ([`frugal_runtime::ForecastParams::alpha`]; its other parameters are
     /// [`frugal_runtime::ForecastParams::DEFAULT`]'s).
     pub forecast_alpha: f32,
+    /// How far over the budget one action of the budget policy may go, as a multiple
+    /// of the budget: the policy may take any action whose device ms per frame is at
+    /// most `burst × budget` while its table, streamed on the tuning videos, keeps the
+    /// budget on average; so it can spend on hard content what it saves on easy
+    /// content. 1: every action fits the budget by itself. Random + tracker and the
+    /// ApproxDet-style scheduler keep the budget per action whatever this is; static +
+    /// tracker is the best fixed schedule within the burst that keeps the budget on the
+    /// clock ([`crate::budget_eval::SearchTrace::best_fixed`]).
+    pub burst: f64,
 }
 
 /// What one move of the search on the clock sets.
@@ -140,6 +151,10 @@ pub enum SearchLevel {
     /// One action for every state of one content state (27 moves per action).
     #[default]
     Content,
+    /// One action for every state of one content state, and then, finer, for every
+    /// state of one content state and confidence bucket (whatever the current
+    /// variant): both kinds of move in every sweep, most looked-up first.
+    Confidence,
     /// One action for one state.
     State,
 }
@@ -199,6 +214,7 @@ impl Default for BudgetConfig {
             search_level: SearchLevel::Content,
             forecast: true,
             forecast_alpha: frugal_runtime::ForecastParams::DEFAULT.alpha,
+            burst: 1.5,
         }
     }
 }
@@ -266,6 +282,9 @@ impl BudgetConfig {
         }
         if !(self.forecast_alpha > 0.0 && self.forecast_alpha <= 1.0) {
             return bad("forecast_alpha", "must be in (0, 1]");
+        }
+        if !(self.burst.is_finite() && self.burst >= 1.0) {
+            return bad("burst", "must be finite and >= 1");
         }
         if !(0.0..1.0).contains(&self.gamma) {
             return bad("gamma", "must be in [0, 1)");
@@ -426,10 +445,11 @@ impl BudgetPolicies {
         }
     }
 
-    /// The actions a policy under `budget_ms` may take: those whose device ms per frame
-    /// (on the training videos) fit the budget; the cheapest alone when none does. So
-    /// the policy never runs a variant that breaks the budget while a cheaper choice
-    /// keeps it, and the expected-latency constraint decides among the rest.
+    /// The actions that fit `budget_ms` by themselves: those whose device ms per frame
+    /// on the training segments fit the budget; the cheapest alone when none does.
+    /// Random + tracker and the ApproxDet-style scheduler choose among these; the budget
+    /// policy among [`Self::choices`], which are these when
+    /// [`BudgetConfig::burst`] is 1.
     pub fn allowed(&self, budget_ms: f64) -> Vec<usize> {
         let a_n = self.action_ms.len();
         let fits: Vec<usize> = (0..a_n)
@@ -443,6 +463,16 @@ impl BudgetPolicies {
         } else {
             fits
         }
+    }
+
+    /// The actions the budget policy may take under `budget_ms`: those [`Self::allowed`]
+    /// and those whose device ms per frame is at most [`BudgetConfig::burst`] times the
+    /// budget, ascending.
+    pub fn choices(&self, budget_ms: f64) -> Vec<usize> {
+        let allowed = self.allowed(budget_ms);
+        (0..self.action_ms.len())
+            .filter(|&a| allowed.contains(&a) || self.action_ms[a] <= self.config.burst * budget_ms)
+            .collect()
     }
 
     /// The ApproxDet-style choice under `budget_ms` for `content`: the most accurate

@@ -150,7 +150,7 @@ pub fn train_budget(
         v_n,
     );
     for &budget in &cfg.budgets_ms {
-        let allowed = out.allowed(budget);
+        let allowed = out.choices(budget);
         let solve = |lambda: f64| {
             let actions = model.solve(budget, lambda, cfg, &allowed);
             let first = actions[start];

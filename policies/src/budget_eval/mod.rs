@@ -6,9 +6,9 @@
 //! 1. `static`: the best static variant under the budget (the most accurate, detecting
 //!    every frame on the training videos, whose detection fits the budget; the
 //!    cheapest when none does), detecting every frame; `static+tracker`: the fixed
-//!    (variant, every `N`) schedule that fits the budget and streams best on the
-//!    training videos ([`search_tables`]; without the search, the best static variant
-//!    at the shortest `N` that fits);
+//!    (variant, every `N`) schedule that streams best on the tuning videos while keeping
+//!    the budget there, in device ms per frame on the clock ([`search_tables`]; without
+//!    the search, the best static variant at the shortest `N` whose segment cost fits);
 //! 2. `random+tracker`: at every decision, an action drawn uniformly from those that
 //!    fit the budget;
 //! 3. `approxdet`: an ApproxDet-style scheduler (Xu et al., SenSys 2020): every 8

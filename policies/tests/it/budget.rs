@@ -78,9 +78,10 @@ fn bundled(
     (policy, bytes)
 }
 
-#[test]
-fn the_budget_policy_never_takes_an_action_over_budget_while_one_fits() {
-    let (_, _, pol) = trained();
+/// Checks budget policies `pol` made with burst `burst`: no action costs more than
+/// `burst` times its budget while one fits the budget, the cheapest when none does, and
+/// every table keeps its budget on average on the training videos.
+fn assert_keeps_budgets(pol: &BudgetPolicies, burst: f64) {
     assert_eq!(pol.policies.len(), 3);
     for p in &pol.policies {
         let fits = pol.action_ms.iter().any(|&ms| ms <= p.budget_ms);
@@ -89,12 +90,16 @@ fn the_budget_policy_never_takes_an_action_over_budget_while_one_fits() {
             let ms = pol.action_ms[usize::from(a)];
             if fits {
                 assert!(
-                    ms <= p.budget_ms,
-                    "budget {}: action {a} costs {ms} ms",
+                    ms <= burst * p.budget_ms,
+                    "budget {} (burst {burst}): action {a} costs {ms} ms",
                     p.budget_ms
                 );
             } else {
-                assert_eq!(ms, cheapest);
+                assert!(
+                    ms == cheapest || ms <= burst * p.budget_ms,
+                    "budget {}: action {a} costs {ms} ms",
+                    p.budget_ms
+                );
             }
         }
         // its rollouts on the training videos keep the budget on average
@@ -112,6 +117,39 @@ fn the_budget_policy_never_takes_an_action_over_budget_while_one_fits() {
             .iter()
             .all(|&a| pol.config.periods[usize::from(a) % p_n] > 1)
     );
+}
+
+/// With a burst of 1 every action fits the budget by itself: the policy never runs a
+/// variant that breaks the budget while a cheaper choice keeps it.
+#[test]
+fn with_no_burst_the_budget_policy_never_takes_an_action_over_budget_while_one_fits() {
+    let (log, frames) = log3();
+    let cfg = BudgetConfig {
+        burst: 1.0,
+        ..config()
+    };
+    let pol = train_budget(&log, &frames, COST, &cfg, 0.5).unwrap();
+    assert_keeps_budgets(&pol, 1.0);
+}
+
+/// With the default burst an action may cost up to 1.5 times the budget, and the
+/// tables still keep the budget on average.
+#[test]
+fn the_budget_policy_keeps_its_budget_on_average_and_no_action_over_its_burst() {
+    let (_, _, pol) = trained();
+    assert_eq!(pol.config.burst, 1.5);
+    assert_keeps_budgets(&pol, pol.config.burst);
+    // the burst widens the choice, never the baselines'
+    for p in &pol.policies {
+        let allowed = pol.allowed(p.budget_ms);
+        let choices = pol.choices(p.budget_ms);
+        assert!(allowed.iter().all(|a| choices.contains(a)));
+        assert!(
+            choices
+                .iter()
+                .all(|&a| allowed.contains(&a) || pol.action_ms[a] <= 1.5 * p.budget_ms)
+        );
+    }
 }
 
 #[test]
@@ -606,14 +644,29 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
     );
     for (k, t) in traces.iter().enumerate() {
         let allowed = searched.allowed(pol.config.budgets_ms[k]);
+        let choices = searched.choices(pol.config.budgets_ms[k]);
         // the learnt table and one per allowed fixed action, at least
         assert!(t.tables > allowed.len(), "{t:?}");
         assert!(t.sap50 >= t.learnt_sap50 - 1e-12, "{t:?}");
         assert!(t.sap50 >= t.best_fixed_sap50 - 1e-12, "{t:?}");
-        assert!(allowed.contains(&usize::from(t.best_fixed)), "{t:?}");
+        // static + tracker keeps the budget on the clock, whatever its segment cost
+        assert!(choices.contains(&usize::from(t.best_fixed)), "{t:?}");
+        assert!(
+            t.best_fixed_ms_per_frame <= pol.config.budgets_ms[k] + 1e-9
+                || t.best_fixed_ms_per_frame <= t.device_ms_per_frame + 1e-9,
+            "{t:?}"
+        );
         let p = &searched.policies[k];
         assert_eq!(p.search.as_ref(), Some(t));
-        assert!(p.actions.iter().all(|&a| allowed.contains(&usize::from(a))));
+        assert!(p.actions.iter().all(|&a| choices.contains(&usize::from(a))));
+        // the table keeps the budget on the tuning clock runs, whatever one action costs
+        assert!(
+            t.device_ms_per_frame <= pol.config.budgets_ms[k] + 1e-9
+                || allowed
+                    .iter()
+                    .all(|&a| searched.action_ms[a] > pol.config.budgets_ms[k]),
+            "{t:?}"
+        );
         assert_eq!(searched.static_tracker(k), usize::from(t.best_fixed));
     }
     // the figures are the evaluation's, streamed on the training videos

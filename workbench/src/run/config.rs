@@ -752,6 +752,11 @@ mod tests {
         assert!(e.contains("huge") && e.contains("quick"), "{e}");
         let e = load_err("[policy]\ngamma = 1.5\n");
         assert!(e.contains("gamma") && e.contains("[0, 1)"), "{e}");
+        let e = load_err("[budget]\nburst = 0.5\n");
+        assert!(
+            e.contains("[budget]") && e.contains("burst") && e.contains(">= 1"),
+            "{e}"
+        );
         let e = load_err("[flights]\nmazes = [\"nowhere.maze\"]\n");
         assert!(
             e.contains("flights.mazes") && e.contains("nowhere.maze"),
