@@ -23,9 +23,10 @@
 //!   spends at most the budget per frame; `κ` ([`BudgetConfig::switch_cost`]) pays
 //!   for switching variants. The constraint is on the average: one action may cost
 //!   up to [`BudgetConfig::burst`] times the budget ([`BudgetPolicies::choices`]), so
-//!   the policy can spend on hard content what it saves on easy content. Unlike the paper's `w / r(s')^α`, where `α` trades
-//!   accuracy for cost at a rate nobody can read off a latency requirement, the
-//!   budget is the requirement itself, in milliseconds on the device.
+//!   the policy can spend on hard content what it saves on easy content. Unlike the
+//!   paper's `w / r(s')^α`, where `α` trades accuracy for cost at a rate nobody can
+//!   read off a latency requirement, the budget is the requirement itself, in
+//!   milliseconds on the device.
 //!
 //! # Estimation
 //!
@@ -465,14 +466,11 @@ impl BudgetPolicies {
         }
     }
 
-    /// The actions the budget policy may take under `budget_ms`: those [`Self::allowed`]
-    /// and those whose device ms per frame is at most [`BudgetConfig::burst`] times the
-    /// budget, ascending.
+    /// The actions the budget policy may take under `budget_ms`: those that fit
+    /// [`BudgetConfig::burst`] times the budget ([`Self::allowed`] under it), ascending;
+    /// every action that fits the budget itself is among them.
     pub fn choices(&self, budget_ms: f64) -> Vec<usize> {
-        let allowed = self.allowed(budget_ms);
-        (0..self.action_ms.len())
-            .filter(|&a| allowed.contains(&a) || self.action_ms[a] <= self.config.burst * budget_ms)
-            .collect()
+        self.allowed(self.config.burst * budget_ms)
     }
 
     /// The ApproxDet-style choice under `budget_ms` for `content`: the most accurate
