@@ -10,11 +10,22 @@ use frugal_models::{FasterRcnn, ModelError};
 use frugal_runtime::{BBox, FrameRef};
 use rand::SeedableRng;
 use std::path::Path;
+use std::sync::{Mutex, MutexGuard};
 use tch::{Device, Kind, Tensor};
+
+/// libtorch's random generator and thread count are global to the process, and the
+/// tests of this binary run on parallel threads. A test that seeds the generator and
+/// then draws from it (weight init, noise augmentation) holds this lock, so a test
+/// running beside it cannot draw in between and change its weights.
+fn torch_globals() -> MutexGuard<'static, ()> {
+    static LOCK: Mutex<()> = Mutex::new(());
+    LOCK.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
 
 /// The crate docs' example, run here (doctests cannot load libtorch).
 #[test]
 fn crate_docs_example() {
+    let _torch = torch_globals();
     tch::manual_seed(0);
     let model = FasterRcnn::new(ModelConfig::default(), Device::Cpu).unwrap();
     let pixels = vec![128u8; 96 * 64 * 3];
@@ -82,6 +93,7 @@ fn draw(objects: &[(u16, u32, u32, u32)], seed: u32) -> (Vec<u8>, Vec<Truth>) {
 
 #[test]
 fn tiny_config_overfits_a_handful_of_images() {
+    let _torch = torch_globals();
     // one intra-op thread: two OpenMP threads crawl on a shared 2-core machine
     tch::set_num_threads(1);
     tch::manual_seed(11);
@@ -146,6 +158,7 @@ fn tiny_config_overfits_a_handful_of_images() {
 
 #[test]
 fn checkpoint_round_trip_gives_identical_outputs() {
+    let _torch = torch_globals();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("m.safetensors");
     tch::manual_seed(1);
@@ -175,6 +188,7 @@ fn checkpoint_round_trip_gives_identical_outputs() {
 
 #[test]
 fn corrupt_or_mismatched_checkpoints_give_clear_errors() {
+    let _torch = torch_globals();
     let dir = tempfile::tempdir().unwrap();
     let bad = dir.path().join("corrupt.safetensors");
     std::fs::write(&bad, b"definitely not safetensors").unwrap();
@@ -245,6 +259,7 @@ fn weights(dir: &Path) -> Vec<(String, Tensor)> {
 
 #[test]
 fn interrupted_training_resumes_to_the_same_weights() {
+    let _torch = torch_globals();
     let tmp = tempfile::tempdir().unwrap();
     let data = tmp.path().join("data");
     tiny_dataset(&data);
