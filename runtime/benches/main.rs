@@ -205,6 +205,26 @@ fn schedule<M: Measurement + 'static>(c: &mut Criterion<M>, suffix: &str) {
             black_box(decision)
         })
     });
+    // the same with a budget keeper charged every frame's compute
+    let mut s = Scheduler::new(bundle, 0).expect("schedules");
+    s.keep_budget(30);
+    let mut i = 0usize;
+    c.bench_function(&format!("schedule/step+shown+spent{suffix}"), |b| {
+        b.iter(|| {
+            i = (i + 1) % inputs.len();
+            let input = black_box(&inputs[i]);
+            let decision = s.step(input.frame, input.track);
+            let ms = if let Decision::Detect { .. } = decision {
+                s.detected(input.score);
+                40.0
+            } else {
+                2.0
+            };
+            s.shown(input.frame, input.count, input.largest);
+            s.spent(black_box(ms));
+            black_box(decision)
+        })
+    });
 }
 
 fn forecast<M: Measurement + 'static>(c: &mut Criterion<M>, suffix: &str) {

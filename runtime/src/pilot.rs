@@ -252,10 +252,28 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
 
     /// Switches a scheduled pilot to budget table `budget` from its next detection;
     /// [`ScheduleError::NoSchedules`] for a pilot over the controller.
-    pub const fn set_budget(&mut self, budget: usize) -> Result<(), ScheduleError> {
+    pub fn set_budget(&mut self, budget: usize) -> Result<(), ScheduleError> {
         match &mut self.engine {
             Engine::Controller(_) => Err(ScheduleError::NoSchedules),
             Engine::Scheduler(s) => s.set_budget(budget),
+        }
+    }
+
+    /// A scheduled pilot that keeps its table's budget on this device
+    /// ([`Scheduler::keep_budget`], `window` frames; 0: none): report each frame's
+    /// measured compute to [`Pilot::spent`]. A pilot over the controller is unchanged.
+    pub fn with_budget_keeper(mut self, window: u32) -> Self {
+        if let Engine::Scheduler(s) = &mut self.engine {
+            s.keep_budget(window);
+        }
+        self
+    }
+
+    /// The device compute the last frame took, in ms (detections and tracking), for a
+    /// scheduled pilot's budget keeper ([`Scheduler::spent`]); ignored otherwise.
+    pub fn spent(&mut self, ms: f32) {
+        if let Engine::Scheduler(s) = &mut self.engine {
+            s.spent(ms);
         }
     }
 

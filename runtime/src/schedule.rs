@@ -21,7 +21,10 @@
 //!    [`Scheduler::detected`] and (re)start the trackers on what it found; on
 //!    [`Decision::Track`], keep the tracked boxes;
 //! 4. `scheduler.shown(t, count, largest)` with what frame `t` shows (the detections
-//!    on a detection frame, the tracked boxes otherwise; [`largest_box`] picks the box).
+//!    on a detection frame, the tracked boxes otherwise; [`largest_box`] picks the box);
+//! 5. with a budget keeper ([`Scheduler::keep_budget`]), `scheduler.spent(ms)` with the
+//!    device compute frame `t` took, so that the table keeps its budget on this device
+//!    ([`BudgetKeeper`]).
 //!
 //! [`crate::pilot::Pilot::scheduled`] runs that loop with its own trackers.
 //!
@@ -114,6 +117,77 @@ pub struct Scheduler<'a> {
     started: bool,
     last_detection: u32,
     stats: Stats,
+    keeper: Option<BudgetKeeper>,
+    /// The current table's budget, device ms, for the keeper (0 if the bundle cannot
+    /// say; read when the keeper is made and on every switch of budget).
+    budget_ms: f32,
+}
+
+/// Holds the current budget table to its budget on the device it runs on: a token
+/// bucket of device milliseconds, empty at the start. Every frame that arrives credits
+/// one frame's budget (frames skipped while perception was busy too), up to `window`
+/// frames of it; every frame's measured compute ([`Scheduler::spent`]) is debited.
+/// While the bucket is in debt, a periodic detection is postponed (the boxes are
+/// tracked instead), for at most one more period. A table made for a device 15 %
+/// faster than this one then costs its budget on average (from the start, but for
+/// the debt of the last detection) instead of 15 % more. The first detection and one
+/// after every track was lost are never postponed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BudgetKeeper {
+    /// Most credit, in frames of budget.
+    window: u32,
+    /// Credit in device ms (negative: debt), within `±window` frames of budget.
+    credit_ms: f32,
+    /// The last frame credited.
+    last: Option<u32>,
+    /// Periodic detections postponed so far.
+    postponed: u32,
+}
+
+impl BudgetKeeper {
+    /// An empty bucket holding at most `window` frames of budget (at least one).
+    pub const fn new(window: u32) -> Self {
+        Self {
+            window: if window > 0 { window } else { 1 },
+            credit_ms: 0.0,
+            last: None,
+            postponed: 0,
+        }
+    }
+
+    /// The credit after crediting every frame up to `frame` at `budget_ms` per frame.
+    fn credit_at(&self, frame: u32, budget_ms: f32) -> f32 {
+        let frames = match self.last {
+            Some(last) => frame.wrapping_sub(last).min(self.window),
+            None => 1,
+        };
+        let cap = budget_ms * self.window as f32;
+        (self.credit_ms + budget_ms * frames as f32).min(cap)
+    }
+
+    /// Credits every frame up to `frame`.
+    fn credit(&mut self, frame: u32, budget_ms: f32) {
+        self.credit_ms = self.credit_at(frame, budget_ms);
+        self.last = Some(frame);
+    }
+
+    /// Debits `ms` of compute (a negative or NaN `ms` debits nothing); the debt stays
+    /// within `window` frames of budget.
+    fn debit(&mut self, ms: f32, budget_ms: f32) {
+        let ms = if ms > 0.0 { ms } else { 0.0 };
+        let floor = -budget_ms * self.window as f32;
+        self.credit_ms = (self.credit_ms - ms).max(floor);
+    }
+
+    /// The credit, in device ms (negative: debt).
+    pub const fn credit_ms(&self) -> f32 {
+        self.credit_ms
+    }
+
+    /// Periodic detections postponed so far.
+    pub const fn postponed(&self) -> u32 {
+        self.postponed
+    }
 }
 
 impl<'a> Scheduler<'a> {
@@ -147,22 +221,80 @@ impl<'a> Scheduler<'a> {
                 detections: 0,
                 queries: 0,
             },
+            keeper: None,
+            budget_ms: 0.0,
         })
     }
 
-    /// Back to the state of [`Scheduler::new`], on the current budget.
+    /// Back to the state of [`Scheduler::new`], on the current budget (a budget keeper
+    /// starts again empty).
     pub fn reset(&mut self) {
+        let (keeper, budget_ms) = (
+            self.keeper.map(|k| BudgetKeeper::new(k.window)),
+            self.budget_ms,
+        );
         if let Ok(fresh) = Self::new(self.bundle, self.budget) {
-            *self = fresh;
+            *self = Self {
+                keeper,
+                budget_ms,
+                ..fresh
+            };
         }
     }
 
-    /// Switches to budget table `budget`; it takes effect at the next query.
-    pub const fn set_budget(&mut self, budget: usize) -> Result<(), ScheduleError> {
+    /// Keeps the current table's budget on this device with a [`BudgetKeeper`] of
+    /// `window` frames (0: no keeper, every period as the table says). The caller then
+    /// reports each frame's measured compute to [`Scheduler::spent`].
+    pub fn keep_budget(&mut self, window: u32) {
+        self.keeper = if window > 0 {
+            Some(BudgetKeeper::new(window))
+        } else {
+            None
+        };
+        self.budget_ms = self.read_budget_ms();
+    }
+
+    /// The budget keeper, if any.
+    pub const fn keeper(&self) -> Option<BudgetKeeper> {
+        self.keeper
+    }
+
+    /// The current table's budget in device ms, as the bundle says (0 if it cannot).
+    fn read_budget_ms(&self) -> f32 {
+        self.schedules
+            .budget(self.budget)
+            .map_or(0.0, |b| b.budget_ms)
+    }
+
+    /// The device compute frame `frame` took, in ms (detection and tracking): debited
+    /// from the budget keeper, if any; ignored otherwise.
+    pub fn spent(&mut self, ms: f32) {
+        let budget = self.budget_ms;
+        if let Some(k) = self.keeper.as_mut() {
+            k.debit(ms, budget);
+        }
+    }
+
+    /// True when a periodic detection on `frame` waits for the budget keeper: it is in
+    /// debt after crediting `frame`, and less than twice the period has passed.
+    fn postpone(&self, frame: u32) -> bool {
+        match self.keeper {
+            Some(k) => {
+                k.credit_at(frame, self.budget_ms) < 0.0
+                    && frame.wrapping_sub(self.last_detection) < self.period.saturating_mul(2)
+            }
+            None => false,
+        }
+    }
+
+    /// Switches to budget table `budget`; it takes effect at the next query (and the
+    /// budget keeper, if any, credits the new budget from the next frame).
+    pub fn set_budget(&mut self, budget: usize) -> Result<(), ScheduleError> {
         if budget >= self.schedules.budget_count() {
             return Err(ScheduleError::NoSuchBudget);
         }
         self.budget = budget;
+        self.budget_ms = self.read_budget_ms();
         Ok(())
     }
 
@@ -231,27 +363,41 @@ impl<'a> Scheduler<'a> {
     }
 
     /// True when [`Scheduler::step`] on `frame` detects whatever the trackers report:
-    /// the first frame, or the current period has passed since the last detection.
-    /// A caller may then skip tracking into `frame` (its boxes would be replaced by the
-    /// detection's); [`crate::pilot::Pilot::scheduled`] does.
-    pub const fn due(&self, frame: u32) -> bool {
-        !self.started || frame.wrapping_sub(self.last_detection) >= self.period
+    /// the first frame, or the current period has passed since the last detection (and
+    /// the budget keeper, if any, does not postpone it). A caller may then skip
+    /// tracking into `frame` (its boxes would be replaced by the detection's);
+    /// [`crate::pilot::Pilot::scheduled`] does.
+    pub fn due(&self, frame: u32) -> bool {
+        !self.started
+            || (frame.wrapping_sub(self.last_detection) >= self.period && !self.postpone(frame))
     }
 
     /// Decides frame `frame`. O(1), allocation-free, never panics.
     ///
     /// [`Trigger::Start`] on the first call; [`Trigger::TrackerLost`] when `track` is
     /// [`TrackState::Lost`]; [`Trigger::Periodic`] when `frame - last detection >=
-    /// current period`; otherwise [`Decision::Track`]. Every detection adopts the
-    /// action of the current budget's table at [`Scheduler::state`] (a version-4
-    /// bundle's first detection, the schedules' initial action).
+    /// current period` and the budget keeper, if any, does not postpone it; otherwise
+    /// [`Decision::Track`]. Every detection adopts the action of the current budget's
+    /// table at [`Scheduler::state`] (a version-4 bundle's first detection, the
+    /// schedules' initial action).
     pub fn step(&mut self, frame: u32, track: TrackState) -> Decision {
         self.stats.frames = self.stats.frames.wrapping_add(1);
+        let postpone = self.postpone(frame);
+        let budget = self.budget_ms;
+        if let Some(k) = self.keeper.as_mut() {
+            k.credit(frame, budget);
+        }
         let reason = if !self.started {
             Trigger::Start
         } else if track == TrackState::Lost {
             Trigger::TrackerLost
         } else if frame.wrapping_sub(self.last_detection) >= self.period {
+            if postpone {
+                if let Some(k) = self.keeper.as_mut() {
+                    k.postponed = k.postponed.wrapping_add(1);
+                }
+                return Decision::Track;
+            }
             Trigger::Periodic
         } else {
             return Decision::Track;

@@ -295,6 +295,7 @@ fn ten_thousand_scheduler_decisions_allocate_nothing() {
     COUNTING.with(|c| c.set(true));
     let bundle = Bundle::parse(&bytes).unwrap();
     let mut s = Scheduler::new(bundle, 0).unwrap();
+    s.keep_budget(30);
     let (mut detections, mut lost) = (0u32, 0u32);
     for frame in 0..10_000u32 {
         if frame % 1_000 == 0 {
@@ -317,8 +318,9 @@ fn ten_thousand_scheduler_decisions_allocate_nothing() {
                 lost += u32::from(reason == frugal_runtime::Trigger::TrackerLost);
                 let score = (frame % 5 != 0).then_some((frame % 100) as f32 / 100.0);
                 s.detected(score);
+                s.spent(30.0);
             }
-            Decision::Track => {}
+            Decision::Track => s.spent(1.5),
         }
         s.shown(frame, shown, largest_box(boxes.into_iter().take(shown)));
     }
@@ -329,6 +331,7 @@ fn ten_thousand_scheduler_decisions_allocate_nothing() {
         "{allocations} allocations in 10,000 scheduler frames"
     );
     assert_eq!(s.stats().frames, 10_000);
+    assert!(s.keeper().is_some_and(|k| k.postponed() > 0));
     assert!(
         detections > 1_000 && detections < 9_000 && lost > 500,
         "{detections} detections, {lost} on lost tracks"
@@ -346,7 +349,8 @@ fn ten_thousand_scheduled_pilot_frames_allocate_nothing() {
     let bundle = Bundle::parse(&bytes).unwrap();
     let mut pilot: Pilot<'_, 2, 8> = Pilot::scheduled(bundle, 0)
         .unwrap()
-        .with_tracker_params(params);
+        .with_tracker_params(params)
+        .with_budget_keeper(30);
     let mut prev = Pyramid::new(&mut wa, w, h, 3).unwrap();
     let mut next = Pyramid::new(&mut wb, w, h, 3).unwrap();
     let (mut detections, mut tracked_frames) = (0u32, 0u32);
@@ -375,10 +379,12 @@ fn ten_thousand_scheduled_pilot_frames_allocate_nothing() {
                     },
                 ];
                 let _ = pilot.detected(&next, &found[..(frame % 3) as usize]);
+                pilot.spent(25.0);
             }
             Decision::Track => {
                 tracked_frames += 1;
                 assert!(pilot.tracked().count() <= 2);
+                pilot.spent(1.0);
             }
         }
         std::mem::swap(&mut prev, &mut next);

@@ -143,6 +143,13 @@ pub struct BudgetConfig {
     /// tracker is the best fixed schedule within the burst that keeps the budget on the
     /// clock ([`crate::budget_eval::SearchTrace::best_fixed`]).
     pub burst: f64,
+    /// The budget policy's budget keeper, in frames of budget
+    /// ([`frugal_runtime::BudgetKeeper`]; 0: none): every frame that arrives credits
+    /// the budget, every frame processed debits its device compute, and a periodic
+    /// detection waits (for at most one more period) while the credit is negative. The
+    /// streams of the search and of the evaluation run it, and so should the drone
+    /// ([`frugal_runtime::pilot::Pilot::with_budget_keeper`] with this window).
+    pub keep_window: u32,
 }
 
 /// What one move of the search on the clock sets.
@@ -216,6 +223,7 @@ impl Default for BudgetConfig {
             forecast: true,
             forecast_alpha: frugal_runtime::ForecastParams::DEFAULT.alpha,
             burst: 1.5,
+            keep_window: 30,
         }
     }
 }
@@ -286,6 +294,12 @@ impl BudgetConfig {
         }
         if !(self.burst.is_finite() && self.burst >= 1.0) {
             return bad("burst", "must be finite and >= 1");
+        }
+        if self.keep_window > 100_000 {
+            return bad(
+                "keep_window",
+                "must be at most 100000 frames (0: no keeper)",
+            );
         }
         if !(0.0..1.0).contains(&self.gamma) {
             return bad("gamma", "must be in [0, 1)");

@@ -106,8 +106,9 @@ pub enum Behaviour {
     Approxdet(Vec<usize>),
     /// The paper's MDP (no budget).
     Mdp,
-    /// The budget policy's table.
-    Table(Vec<u16>),
+    /// The budget policy's table; with a budget keeper, also the budget it keeps (the
+    /// bits of its ms; 0 without one).
+    Table(Vec<u16>, u64),
     /// The oracle with this fallback variant.
     Oracle(usize),
 }
@@ -125,7 +126,14 @@ impl BudgetPolicies {
                 Behaviour::Approxdet(self.allowed(b / self.config.approxdet_headroom))
             }
             BudgetStrategy::MdpTracker => Behaviour::Mdp,
-            BudgetStrategy::Budget => Behaviour::Table(self.policies[k].actions.clone()),
+            BudgetStrategy::Budget => Behaviour::Table(
+                self.policies[k].actions.clone(),
+                if self.config.keep_window > 0 {
+                    b.to_bits()
+                } else {
+                    0
+                },
+            ),
             BudgetStrategy::Oracle => Behaviour::Oracle(st),
         }
     }
@@ -301,6 +309,13 @@ impl Brain<'_> {
         }
     }
 
+    /// The device compute the frame just decided took (the budget keeper's debit).
+    fn spent(&mut self, device_ms: f64) {
+        if let Brain::Scheduler(s, _) = self {
+            s.spent(device_ms as f32);
+        }
+    }
+
     fn shown(&mut self, f: usize, shown: &[Detection]) {
         match self {
             Brain::Scheduler(s, _) => s.shown(f as u32, shown.len(), largest(shown)),
@@ -391,13 +406,12 @@ pub fn stream_strategy(
                 path: "<memory>".into(),
                 message: e.to_string(),
             })?;
-            Brain::Scheduler(
-                Box::new(Scheduler::new(b, k).map_err(|e| PolicyError::Bundle {
-                    path: "<memory>".into(),
-                    message: e.to_string(),
-                })?),
-                Vec::new(),
-            )
+            let mut s = Scheduler::new(b, k).map_err(|e| PolicyError::Bundle {
+                path: "<memory>".into(),
+                message: e.to_string(),
+            })?;
+            s.keep_budget(cfg.keep_window);
+            Brain::Scheduler(Box::new(s), Vec::new())
         }
         BudgetStrategy::Oracle => Brain::Oracle { fallback: st },
     };
@@ -450,7 +464,9 @@ pub fn stream_strategy(
             }
         };
         brain.shown(f, &shown);
-        Ok((shown, jittered(ms)))
+        let ms = jittered(ms);
+        brain.spent(ms * cfg.slowdown);
+        Ok((shown, ms))
     })?;
     let queried = match brain {
         Brain::Scheduler(_, queried) => queried,

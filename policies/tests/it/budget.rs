@@ -186,11 +186,16 @@ fn the_approxdet_baseline_takes_the_most_accurate_action_under_budget_over_headr
 }
 
 /// The runtime's scheduled `Pilot`, fed the replay's detections on the replay's
-/// frames, decides and shows exactly what the streaming evaluation of the budget
-/// strategy does, frame by frame, at every budget.
+/// frames and the compute the evaluation charged, decides and shows exactly what the
+/// streaming evaluation of the budget strategy does, frame by frame, at every budget;
+/// on a device twice as slow as the tables were made for, so that the budget keeper
+/// postpones detections too.
 #[test]
 fn the_runtime_pilot_runs_the_budget_policy_as_the_evaluation() {
-    let (log, frames, pol) = trained();
+    let (mut log, frames, pol) = trained();
+    for v in &mut log.variants {
+        v.latency_ms *= 2.0;
+    }
     let mut policy = train(&log, &PolicyConfig::default()).unwrap();
     policy.budget = Some(BudgetPolicies {
         config: BudgetConfig {
@@ -204,7 +209,7 @@ fn the_runtime_pilot_runs_the_budget_policy_as_the_evaluation() {
         .unwrap();
     let levels = TrackerParams::DEFAULT.lk.levels;
     let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
-    let (mut detections, mut tracked) = (0, 0);
+    let (mut detections, mut tracked, mut postponed) = (0, 0, 0);
     // one cache per video for every budget: later budgets read steps back
     let caches: Vec<VideoCache> = videos.iter().map(|_| VideoCache::default()).collect();
     for k in 0..pol.config.budgets_ms.len() {
@@ -227,7 +232,8 @@ fn the_runtime_pilot_runs_the_budget_policy_as_the_evaluation() {
             let mut pilot: Pilot<'_, 4, TRACK_POINTS> =
                 Pilot::scheduled(Bundle::parse(&bytes).unwrap(), k)
                     .unwrap()
-                    .with_max_tracks(pol.config.max_tracks);
+                    .with_max_tracks(pol.config.max_tracks)
+                    .with_budget_keeper(pol.config.keep_window);
             let mut prev = Pyramid::new(&mut a, w, h, levels).unwrap();
             let mut cur = Pyramid::new(&mut b, w, h, levels).unwrap();
             for (fi, f) in video.frames.iter().enumerate() {
@@ -276,14 +282,22 @@ fn the_runtime_pilot_runs_the_budget_policy_as_the_evaluation() {
                 mine.sort_unstable();
                 theirs.sort_unstable();
                 assert_eq!(mine, theirs, "budget {k} video {} frame {fi}", video.id);
+                // the compute the evaluation charged, as the drone would measure it
+                pilot.spent(run.run.outputs[fi].device_ms as f32);
                 std::mem::swap(&mut prev, &mut cur);
             }
+            postponed += pilot
+                .scheduler()
+                .and_then(|s| s.keeper())
+                .unwrap()
+                .postponed();
         }
     }
     assert!(
         detections > 0 && tracked > 0,
         "both kinds of frame: {detections} / {tracked}"
     );
+    assert!(postponed > 0, "the budget keeper postponed no detection");
 }
 
 /// Every variant's latency changed by ±15 % (as on another machine) moves the
@@ -346,6 +360,83 @@ fn a_fifteen_percent_change_of_every_latency_moves_the_budget_policy_little() {
             }
         }
     }
+}
+
+/// Tables made for one device, run there and on a device where every variant is 60 %
+/// slower: wherever a table alone breaks its budget, the budget keeper holds it to the
+/// budget, by postponing detections.
+#[test]
+fn the_budget_keeper_holds_tables_made_for_a_faster_device_to_their_budgets() {
+    let (log, frames, pol) = trained();
+    let (_, bytes) = bundled(&log, &pol);
+    let with_window = |keep_window| BudgetPolicies {
+        config: BudgetConfig {
+            keep_window,
+            ..pol.config.clone()
+        },
+        ..pol.clone()
+    };
+    let (free_pol, kept) = (with_window(0), with_window(30));
+    // ten times longer videos, each played forth and back (the keeper holds the budget
+    // over its window, 30 frames; the fixture's clips have 24), every variant 60 %
+    // slower
+    let mut long = log.clone();
+    for v in &mut long.videos {
+        let n = v.frames.len();
+        v.frames = (0..10 * n)
+            .map(|i| {
+                let (lap, j) = (i / n, i % n);
+                v.frames[if lap % 2 == 0 { j } else { n - 1 - j }].clone()
+            })
+            .collect();
+    }
+    let mut slow = long.clone();
+    for v in &mut slow.variants {
+        v.latency_ms *= 1.6;
+    }
+    // device ms per frame and detections of the budget policy under budget `k`
+    let spend = |log: &frugal_policies::ReplayLog, pol: &BudgetPolicies, k: usize| {
+        let (mut ms, mut n, mut detections) = (0.0, 0usize, 0usize);
+        for video in log.split(Split::Test) {
+            let cache = VideoCache::default();
+            let run = stream(
+                log,
+                video,
+                &frames,
+                pol,
+                k,
+                &bytes,
+                BudgetStrategy::Budget,
+                0,
+                &cache,
+            );
+            ms += run.run.outputs.iter().map(|o| o.device_ms).sum::<f64>();
+            n += video.frames.len() - run.start;
+            detections += run.detect.iter().filter(|d| d.is_some()).count();
+        }
+        (ms / n as f64, detections)
+    };
+    let mut broken = 0;
+    for (k, &budget) in pol.config.budgets_ms.iter().enumerate() {
+        for device in [&long, &slow] {
+            let (free, free_detections) = spend(device, &free_pol, k);
+            let (held, detections) = spend(device, &kept, k);
+            if free > budget {
+                broken += 1;
+                assert!(
+                    held <= budget * 1.02,
+                    "budget {budget}: {held} ms per frame with the keeper ({free} without)"
+                );
+                assert!(detections < free_detections);
+            } else {
+                assert!(
+                    held <= budget,
+                    "budget {budget}: {free} → {held} ms per frame"
+                );
+            }
+        }
+    }
+    assert!(broken > 0, "no table broke its budget 60 % slower");
 }
 
 /// A perceiver reading tracking steps back from a cache shared by every strategy,

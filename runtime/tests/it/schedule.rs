@@ -561,6 +561,112 @@ fn a_detection_is_due_on_the_first_frame_and_when_the_period_has_passed() {
     assert!(!s.due(5) && s.due(8));
 }
 
+/// Budget 1 of [`bundle_bytes`] (5 ms, `(0, every 4)` everywhere) on a device where a
+/// detection costs `detect_ms` and a tracked frame `track_ms`, a still sign in view,
+/// for `frames` frames: (device ms per frame, detections, the longest gap between two
+/// detections, what the keeper postponed).
+fn keep(window: u32, detect_ms: f32, track_ms: f32, frames: u32) -> (f32, u32, u32, u32) {
+    let bytes = bundle_bytes();
+    let mut s = Scheduler::new(Bundle::parse(&bytes).unwrap(), 1).unwrap();
+    s.keep_budget(window);
+    let (mut spent, mut detections, mut gap, mut last) = (0.0f32, 0u32, 0u32, 0u32);
+    let sign = BBox::new(100.0, 100.0, 140.0, 140.0);
+    for f in 0..frames {
+        let due = s.due(f);
+        let ms = match s.step(f, TrackState::Held) {
+            Decision::Detect { .. } => {
+                assert!(due, "frame {f}: detected, not due");
+                s.detected(Some(0.95));
+                detections += 1;
+                gap = gap.max(f - last);
+                last = f;
+                detect_ms
+            }
+            Decision::Track => {
+                assert!(!due, "frame {f}: due, not detected");
+                track_ms
+            }
+        };
+        s.shown(f, 1, Some(sign));
+        s.spent(ms);
+        spent += ms;
+    }
+    let postponed = s.keeper().map_or(0, |k| k.postponed());
+    (spent / frames as f32, detections, gap, postponed)
+}
+
+#[test]
+fn a_budget_keeper_holds_a_table_to_its_budget_on_a_slower_device() {
+    // every 4 frames: 20 + 3 × 1 ms, 5.75 ms per frame against the table's 5
+    let (free, free_det, free_gap, _) = keep(0, 20.0, 1.0, 1200);
+    assert!((free - 5.75).abs() < 0.01, "{free}");
+    assert_eq!((free_det, free_gap), (300, 4));
+    let (kept, det, gap, postponed) = keep(30, 20.0, 1.0, 1200);
+    // the budget, but for the last detection's debt
+    assert!(kept <= 5.0 + 20.0 / 1200.0, "{kept} ms per frame");
+    assert!(
+        kept >= 5.0 * 0.95,
+        "the budget is spent, not hoarded: {kept}"
+    );
+    assert!(
+        det < free_det && postponed > 0,
+        "{det} detections, {postponed} postponed"
+    );
+    assert!(gap <= 8, "postponed for at most one more period: {gap}");
+    // where the table keeps its budget, the keeper changes nothing
+    assert_eq!(
+        keep(30, 12.0, 1.0, 1200),
+        (keep(0, 12.0, 1.0, 1200).0, 300, 4, 0)
+    );
+    // where tracking alone costs more than the budget, detections still come every
+    // two periods
+    // two periods
+    let (_, det, gap, _) = keep(30, 20.0, 6.0, 1200);
+    assert_eq!((det, gap), (150, 8));
+}
+
+#[test]
+fn a_budget_keeper_never_postpones_the_first_detection_or_one_after_a_loss() {
+    let bytes = bundle_bytes();
+    let mut s = Scheduler::new(Bundle::parse(&bytes).unwrap(), 1).unwrap();
+    s.keep_budget(30);
+    assert!(matches!(
+        s.step(0, TrackState::Idle),
+        Decision::Detect {
+            reason: Trigger::Start,
+            ..
+        }
+    ));
+    s.detected(Some(0.95));
+    s.spent(1000.0); // deep in debt
+    for f in 1..6 {
+        assert_eq!(s.step(f, TrackState::Held), Decision::Track, "frame {f}");
+        s.spent(1.0);
+    }
+    assert!(s.keeper().unwrap().credit_ms() < 0.0);
+    assert!(matches!(
+        s.step(6, TrackState::Lost),
+        Decision::Detect {
+            reason: Trigger::TrackerLost,
+            ..
+        }
+    ));
+    // the debt is bounded: window frames of budget
+    s.spent(f32::MAX);
+    assert_eq!(s.keeper().unwrap().credit_ms(), -150.0);
+    s.spent(f32::NAN);
+    s.spent(-3.0);
+    assert_eq!(s.keeper().unwrap().credit_ms(), -150.0);
+    // switching budgets credits the new table's budget per frame
+    s.set_budget(0).unwrap();
+    let _ = s.step(7, TrackState::Held);
+    assert_eq!(s.keeper().unwrap().credit_ms(), -130.0);
+    // a reset empties the keeper and keeps it
+    s.reset();
+    assert_eq!(s.keeper().unwrap().credit_ms(), 0.0);
+    assert_eq!(s.keeper().unwrap().postponed(), 0);
+}
+
 #[test]
 fn a_scheduled_pilot_detects_every_period_and_reports_what_it_shows() {
     // budget 1: (0, 4) everywhere, from the first frame on
@@ -664,18 +770,21 @@ fn scheduled_pilot_stats_count_decisions() {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(300))]
 
-    /// Any sequence of calls: never a panic, and every decision names a variant of the
-    /// bundle with one of its periods.
+    /// Any sequence of calls, with or without a budget keeper: never a panic, and every
+    /// decision names a variant of the bundle with one of its periods.
     #[test]
     fn any_call_sequence_stays_in_the_tables(
-        calls in proptest::collection::vec((0u8..4, any::<u32>(), any::<f32>(), 0usize..5), 1..200)
+        window in 0u32..40,
+        calls in proptest::collection::vec((0u8..5, any::<u32>(), any::<f32>(), 0usize..5), 1..200)
     ) {
         let bytes = bundle_bytes();
         let mut s = Scheduler::new(Bundle::parse(&bytes).unwrap(), 0).unwrap();
+        s.keep_budget(window);
         let mut frame = 0u32;
         for (op, x, f, n) in calls {
             frame = frame.wrapping_add(x % 3);
             match op {
+                4 => s.spent(f),
                 0 => {
                     let track = [TrackState::Idle, TrackState::Held, TrackState::Lost][n % 3];
                     if let Decision::Detect { variant, .. } = s.step(frame, track) {
@@ -691,6 +800,9 @@ proptest! {
             }
             prop_assert!([1, 4].contains(&s.current_period()));
             prop_assert!(s.state() < 2 * 108);
+            if let Some(k) = s.keeper() {
+                prop_assert!(k.credit_ms().is_finite());
+            }
         }
     }
 }
