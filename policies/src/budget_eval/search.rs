@@ -392,16 +392,30 @@ pub fn search_tables(
         let learnt_sap50 = learnt_fig.sap50;
         let mut best = (String::from("learnt"), learnt, learnt_runs, learnt_fig);
         // every fixed schedule within the burst, judged like the tables by its cost on
-        // the clock: the best that keeps the budget there is static + tracker's
+        // the clock: the best that keeps the budget there is static + tracker's. Static
+        // + tracker runs without the budget keeper, so it is judged without it too.
         let mut best_fixed: Option<(u16, Figures)> = None;
         for (&a, name) in choices.iter().zip(names) {
             let table = vec![a as u16; states];
             let (runs, fig) = full(policy, &table)?;
+            let fixed_fig = if cfg.keep_window > 0 {
+                let keep = |policy: &mut TrainedPolicy, window: u32| {
+                    if let Some(b) = policy.budget.as_mut() {
+                        b.config.keep_window = window;
+                    }
+                };
+                keep(policy, 0);
+                let streamed = full(policy, &table);
+                keep(policy, cfg.keep_window);
+                streamed?.1
+            } else {
+                fig.clone()
+            };
             if best_fixed
                 .as_ref()
-                .is_none_or(|(_, f)| better_start(&fig, f, budget))
+                .is_none_or(|(_, f)| better_start(&fixed_fig, f, budget))
             {
-                best_fixed = Some((a as u16, fig.clone()));
+                best_fixed = Some((a as u16, fixed_fig));
             }
             if better_start(&fig, &best.3, budget) {
                 best = (name, table, runs, fig);
