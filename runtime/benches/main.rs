@@ -172,7 +172,6 @@ struct ScheduleInput {
 fn schedule<M: Measurement + 'static>(c: &mut Criterion<M>, suffix: &str) {
     let bytes = scheduled_bundle_bytes();
     let bundle = Bundle::parse(&bytes).expect("parse");
-    let mut s = Scheduler::new(bundle, 0).expect("schedules");
     // A repeating pattern that exercises every trigger, bucket and content state.
     let inputs: Vec<ScheduleInput> = (0..1000u32)
         .map(|f| {
@@ -192,39 +191,35 @@ fn schedule<M: Measurement + 'static>(c: &mut Criterion<M>, suffix: &str) {
             }
         })
         .collect();
-    let mut i = 0usize;
-    c.bench_function(&format!("schedule/step+shown{suffix}"), |b| {
-        b.iter(|| {
-            i = (i + 1) % inputs.len();
-            let input = black_box(&inputs[i]);
-            let decision = s.step(input.frame, input.track);
-            if let Decision::Detect { .. } = decision {
-                s.detected(input.score);
-            }
-            s.shown(input.frame, input.count, input.largest);
-            black_box(decision)
-        })
-    });
-    // the same with a budget keeper charged every frame's compute
-    let mut s = Scheduler::new(bundle, 0).expect("schedules");
-    s.keep_budget(30);
-    let mut i = 0usize;
-    c.bench_function(&format!("schedule/step+shown+spent{suffix}"), |b| {
-        b.iter(|| {
-            i = (i + 1) % inputs.len();
-            let input = black_box(&inputs[i]);
-            let decision = s.step(input.frame, input.track);
-            let ms = if let Decision::Detect { .. } = decision {
-                s.detected(input.score);
-                40.0
-            } else {
-                2.0
-            };
-            s.shown(input.frame, input.count, input.largest);
-            s.spent(black_box(ms));
-            black_box(decision)
-        })
-    });
+    // without a budget keeper, then with one charged every frame's compute
+    for window in [0u32, 30] {
+        let mut s = Scheduler::new(bundle, 0).expect("schedules");
+        s.keep_budget(window);
+        let name = if window > 0 {
+            "step+shown+spent"
+        } else {
+            "step+shown"
+        };
+        let mut i = 0usize;
+        c.bench_function(&format!("schedule/{name}{suffix}"), |b| {
+            b.iter(|| {
+                i = (i + 1) % inputs.len();
+                let input = black_box(&inputs[i]);
+                let decision = s.step(input.frame, input.track);
+                let ms = if let Decision::Detect { .. } = decision {
+                    s.detected(input.score);
+                    40.0
+                } else {
+                    2.0
+                };
+                s.shown(input.frame, input.count, input.largest);
+                if window > 0 {
+                    s.spent(black_box(ms));
+                }
+                black_box(decision)
+            })
+        });
+    }
 }
 
 fn forecast<M: Measurement + 'static>(c: &mut Criterion<M>, suffix: &str) {
