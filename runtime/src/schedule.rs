@@ -118,9 +118,6 @@ pub struct Scheduler<'a> {
     last_detection: u32,
     stats: Stats,
     keeper: Option<BudgetKeeper>,
-    /// The current table's budget, device ms, for the keeper (0 if the bundle cannot
-    /// say; read when the keeper is made and on every switch of budget).
-    budget_ms: f32,
 }
 
 /// Holds the current budget table to its budget on the device it runs on: a token
@@ -134,6 +131,8 @@ pub struct Scheduler<'a> {
 /// after every track was lost are never postponed.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BudgetKeeper {
+    /// The budget credited per frame, device ms (the current table's).
+    budget_ms: f32,
     /// Most credit, in frames of budget.
     window: u32,
     /// Credit in device ms (negative: debt), within `±window` frames of budget.
@@ -145,9 +144,11 @@ pub struct BudgetKeeper {
 }
 
 impl BudgetKeeper {
-    /// An empty bucket holding at most `window` frames of budget (at least one).
-    pub const fn new(window: u32) -> Self {
+    /// An empty bucket of `budget_ms` per frame holding at most `window` frames of
+    /// budget (at least one).
+    pub const fn new(budget_ms: f32, window: u32) -> Self {
         Self {
+            budget_ms,
             window: if window > 0 { window } else { 1 },
             credit_ms: 0.0,
             last: None,
@@ -155,27 +156,27 @@ impl BudgetKeeper {
         }
     }
 
-    /// The credit after crediting every frame up to `frame` at `budget_ms` per frame.
-    fn credit_at(&self, frame: u32, budget_ms: f32) -> f32 {
+    /// The credit after crediting every frame up to `frame`.
+    fn credit_at(&self, frame: u32) -> f32 {
         let frames = match self.last {
             Some(last) => frame.wrapping_sub(last).min(self.window),
             None => 1,
         };
-        let cap = budget_ms * self.window as f32;
-        (self.credit_ms + budget_ms * frames as f32).min(cap)
+        let cap = self.budget_ms * self.window as f32;
+        (self.credit_ms + self.budget_ms * frames as f32).min(cap)
     }
 
     /// Credits every frame up to `frame`.
-    fn credit(&mut self, frame: u32, budget_ms: f32) {
-        self.credit_ms = self.credit_at(frame, budget_ms);
+    fn credit(&mut self, frame: u32) {
+        self.credit_ms = self.credit_at(frame);
         self.last = Some(frame);
     }
 
     /// Debits `ms` of compute (a negative or NaN `ms` debits nothing); the debt stays
     /// within `window` frames of budget.
-    fn debit(&mut self, ms: f32, budget_ms: f32) {
+    fn debit(&mut self, ms: f32) {
         let ms = if ms > 0.0 { ms } else { 0.0 };
-        let floor = -budget_ms * self.window as f32;
+        let floor = -self.budget_ms * self.window as f32;
         self.credit_ms = (self.credit_ms - ms).max(floor);
     }
 
@@ -222,23 +223,17 @@ impl<'a> Scheduler<'a> {
                 queries: 0,
             },
             keeper: None,
-            budget_ms: 0.0,
         })
     }
 
     /// Back to the state of [`Scheduler::new`], on the current budget (a budget keeper
     /// starts again empty).
     pub fn reset(&mut self) {
-        let (keeper, budget_ms) = (
-            self.keeper.map(|k| BudgetKeeper::new(k.window)),
-            self.budget_ms,
-        );
+        let keeper = self
+            .keeper
+            .map(|k| BudgetKeeper::new(k.budget_ms, k.window));
         if let Ok(fresh) = Self::new(self.bundle, self.budget) {
-            *self = Self {
-                keeper,
-                budget_ms,
-                ..fresh
-            };
+            *self = Self { keeper, ..fresh };
         }
     }
 
@@ -246,12 +241,7 @@ impl<'a> Scheduler<'a> {
     /// `window` frames (0: no keeper, every period as the table says). The caller then
     /// reports each frame's measured compute to [`Scheduler::spent`].
     pub fn keep_budget(&mut self, window: u32) {
-        self.keeper = if window > 0 {
-            Some(BudgetKeeper::new(window))
-        } else {
-            None
-        };
-        self.budget_ms = self.read_budget_ms();
+        self.keeper = (window > 0).then(|| BudgetKeeper::new(self.read_budget_ms(), window));
     }
 
     /// The budget keeper, if any.
@@ -269,22 +259,18 @@ impl<'a> Scheduler<'a> {
     /// The device compute frame `frame` took, in ms (detection and tracking): debited
     /// from the budget keeper, if any; ignored otherwise.
     pub fn spent(&mut self, ms: f32) {
-        let budget = self.budget_ms;
         if let Some(k) = self.keeper.as_mut() {
-            k.debit(ms, budget);
+            k.debit(ms);
         }
     }
 
     /// True when a periodic detection on `frame` waits for the budget keeper: it is in
     /// debt after crediting `frame`, and less than twice the period has passed.
     fn postpone(&self, frame: u32) -> bool {
-        match self.keeper {
-            Some(k) => {
-                k.credit_at(frame, self.budget_ms) < 0.0
-                    && frame.wrapping_sub(self.last_detection) < self.period.saturating_mul(2)
-            }
-            None => false,
-        }
+        self.keeper.is_some_and(|k| {
+            k.credit_at(frame) < 0.0
+                && frame.wrapping_sub(self.last_detection) < self.period.saturating_mul(2)
+        })
     }
 
     /// Switches to budget table `budget`; it takes effect at the next query (and the
@@ -294,7 +280,10 @@ impl<'a> Scheduler<'a> {
             return Err(ScheduleError::NoSuchBudget);
         }
         self.budget = budget;
-        self.budget_ms = self.read_budget_ms();
+        let budget_ms = self.read_budget_ms();
+        if let Some(k) = self.keeper.as_mut() {
+            k.budget_ms = budget_ms;
+        }
         Ok(())
     }
 
@@ -382,10 +371,10 @@ impl<'a> Scheduler<'a> {
     /// schedules' initial action).
     pub fn step(&mut self, frame: u32, track: TrackState) -> Decision {
         self.stats.frames = self.stats.frames.wrapping_add(1);
+        // (postpone before crediting: it credits up to `frame` itself, as `due` does)
         let postpone = self.postpone(frame);
-        let budget = self.budget_ms;
         if let Some(k) = self.keeper.as_mut() {
-            k.credit(frame, budget);
+            k.credit(frame);
         }
         let reason = if !self.started {
             Trigger::Start

@@ -395,21 +395,19 @@ pub fn search_tables(
         // the clock: the best that keeps the budget there is static + tracker's. Static
         // + tracker runs without the budget keeper, so it is judged without it too.
         let mut best_fixed: Option<(u16, Figures)> = None;
+        let mut bare = (cfg.keep_window > 0).then(|| {
+            let mut bare = policy.clone();
+            if let Some(b) = bare.budget.as_mut() {
+                b.config.keep_window = 0;
+            }
+            bare
+        });
         for (&a, name) in choices.iter().zip(names) {
             let table = vec![a as u16; states];
             let (runs, fig) = full(policy, &table)?;
-            let fixed_fig = if cfg.keep_window > 0 {
-                let keep = |policy: &mut TrainedPolicy, window: u32| {
-                    if let Some(b) = policy.budget.as_mut() {
-                        b.config.keep_window = window;
-                    }
-                };
-                keep(policy, 0);
-                let streamed = full(policy, &table);
-                keep(policy, cfg.keep_window);
-                streamed?.1
-            } else {
-                fig.clone()
+            let fixed_fig = match bare.as_mut() {
+                Some(bare) => full(bare, &table)?.1,
+                None => fig.clone(),
             };
             if best_fixed
                 .as_ref()
