@@ -129,6 +129,7 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
         "mdp+tracker",
         "budget",
         "oracle",
+        "hindsight",
     ] {
         let rows = held
             .as_array()

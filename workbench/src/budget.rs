@@ -7,7 +7,7 @@ use frugal_data::{Dataset, Split};
 use frugal_policies::budget::{BudgetConfig, train_budget};
 use frugal_policies::budget_eval::{
     BudgetScore, TuneSet, budget_csv, budget_margins, budget_scores, budget_table, plot_budget,
-    search_tables, stream_all,
+    search_tables, stream_all, stream_steps,
 };
 use frugal_policies::eval::{EvalConfig, Strategy, run_all};
 use frugal_policies::replay::{DatasetFrames, VideoLog};
@@ -53,9 +53,7 @@ fn score_log(
         anyhow::bail!("{}: the log has no test videos", data.display());
     }
     let bundle = frugal_policies::bundle::policy_bundle(policy, eval.thresholds())?;
-    let n = videos.len()
-        * pol.config.budgets_ms.len()
-        * frugal_policies::budget_eval::BudgetStrategy::ALL.len();
+    let n = videos.len() * stream_steps(pol);
     let pb = crate::features::bar(false, n, "streaming");
     let runs = stream_all(log, &videos, frames, cost, pol, &bundle, 0.5, &|| pb.inc(1))?;
     pb.finish_and_clear();

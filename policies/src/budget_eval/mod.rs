@@ -21,10 +21,15 @@
 //! 5. `budget`: the learnt budget + content policy ([`crate::budget`]), run by the
 //!    runtime's own [`Scheduler`] over a bundle holding its tables;
 //! 6. `oracle`: per frame, the cheapest variant that gets the frame right (the replay's
-//!    truth), detecting every frame.
+//!    truth), detecting every frame;
+//! 7. `hindsight`: per video, the fixed (variant, every `N`) schedule with the tracker
+//!    chosen knowing the videos' truth, the choices together keeping the budget
+//!    ([`hindsight`]): how much choosing the right schedule per video could gain over
+//!    static + tracker on these videos.
 //!
 //! The paper's MDP also keeps its offline (clock-free) evaluation in [`crate::eval`].
 
+mod hindsight;
 mod score;
 mod search;
 
@@ -32,6 +37,8 @@ pub use score::{
     BudgetScore, Margin, budget_csv, budget_margins, budget_scores, budget_table, plot_budget,
 };
 pub use search::{SearchTrace, TuneSet, search_tables};
+
+use score::Tally;
 
 use crate::budget::{BudgetPolicies, Perceiver, TrackState, VideoCache, largest};
 use crate::error::{PolicyError, Result};
@@ -62,11 +69,14 @@ pub enum BudgetStrategy {
     Budget,
     /// The per-frame oracle.
     Oracle,
+    /// Per video, the fixed schedule chosen knowing the truth, keeping the budget over
+    /// all videos ([`hindsight`]).
+    Hindsight,
 }
 
 impl BudgetStrategy {
     /// Every strategy, baselines first.
-    pub const ALL: [BudgetStrategy; 7] = [
+    pub const ALL: [BudgetStrategy; 8] = [
         BudgetStrategy::Static,
         BudgetStrategy::StaticTracker,
         BudgetStrategy::RandomTracker,
@@ -74,6 +84,7 @@ impl BudgetStrategy {
         BudgetStrategy::MdpTracker,
         BudgetStrategy::Budget,
         BudgetStrategy::Oracle,
+        BudgetStrategy::Hindsight,
     ];
 
     /// Short name.
@@ -86,6 +97,7 @@ impl BudgetStrategy {
             BudgetStrategy::MdpTracker => "mdp+tracker",
             BudgetStrategy::Budget => "budget",
             BudgetStrategy::Oracle => "oracle",
+            BudgetStrategy::Hindsight => "hindsight",
         }
     }
 
@@ -111,6 +123,8 @@ pub enum Behaviour {
     Table(Vec<u16>, u64),
     /// The oracle with this fallback variant.
     Oracle(usize),
+    /// The hindsight bound under a budget (the bits of its ms), from this fixed action.
+    Hindsight(u64, usize),
 }
 
 impl BudgetPolicies {
@@ -135,6 +149,7 @@ impl BudgetPolicies {
                 },
             ),
             BudgetStrategy::Oracle => Behaviour::Oracle(st),
+            BudgetStrategy::Hindsight => Behaviour::Hindsight(b.to_bits(), self.static_tracker(k)),
         }
     }
 }
@@ -343,7 +358,9 @@ pub struct BudgetRun {
 }
 
 /// Stream `strategy` under budget `k` of `pol` over `video`. `bundle` holds the
-/// budget tables (for [`BudgetStrategy::Budget`]).
+/// budget tables (for [`BudgetStrategy::Budget`]). [`BudgetStrategy::Hindsight`] is
+/// chosen over a set of videos, not streamed on one: [`stream_all`] makes it, and here
+/// it is an error.
 #[allow(clippy::too_many_arguments)]
 pub fn stream_strategy(
     log: &ReplayLog,
@@ -354,6 +371,42 @@ pub fn stream_strategy(
     k: usize,
     bundle: &[u8],
     strategy: BudgetStrategy,
+    iou: f32,
+    clock_run: u32,
+    cache: &VideoCache,
+) -> Result<BudgetRun> {
+    stream_plan(
+        log,
+        video,
+        frames,
+        cost,
+        pol,
+        k,
+        bundle,
+        Plan::Strategy(strategy),
+        iou,
+        clock_run,
+        cache,
+    )
+}
+
+/// What [`stream_plan`] streams: a strategy, or one fixed action with the tracker.
+#[derive(Clone, Copy)]
+enum Plan {
+    Strategy(BudgetStrategy),
+    Fixed(usize),
+}
+
+#[allow(clippy::too_many_arguments)]
+fn stream_plan(
+    log: &ReplayLog,
+    video: &VideoLog,
+    frames: &dyn Frames,
+    cost: TrackerCost,
+    pol: &BudgetPolicies,
+    k: usize,
+    bundle: &[u8],
+    plan: Plan,
     iou: f32,
     clock_run: u32,
     cache: &VideoCache,
@@ -384,24 +437,39 @@ pub fn stream_strategy(
         content: ContentTracker::new(edges),
     };
     let st = pol.static_under(budget_ms);
-    let mut brain = match strategy {
-        BudgetStrategy::Static => period(Chooser::Fixed(cfg.action(st, 0))),
-        BudgetStrategy::StaticTracker => period(Chooser::Fixed(pol.static_tracker(k))),
-        BudgetStrategy::RandomTracker => {
+    let strategy = match plan {
+        Plan::Strategy(s) => s,
+        Plan::Fixed(_) => BudgetStrategy::StaticTracker,
+    };
+    let mut brain = match plan {
+        Plan::Fixed(a) => period(Chooser::Fixed(a)),
+        Plan::Strategy(BudgetStrategy::Hindsight) => {
+            return Err(PolicyError::invalid(
+                std::path::Path::new("<budget strategies>"),
+                "strategy",
+                "the hindsight bound is chosen over a set of videos (stream_all), not streamed on one"
+                    .to_string(),
+            ));
+        }
+        Plan::Strategy(BudgetStrategy::Static) => period(Chooser::Fixed(cfg.action(st, 0))),
+        Plan::Strategy(BudgetStrategy::StaticTracker) => {
+            period(Chooser::Fixed(pol.static_tracker(k)))
+        }
+        Plan::Strategy(BudgetStrategy::RandomTracker) => {
             let fits = pol.allowed(budget_ms);
             // seeded by the video alone: the same choices draw the same stream under
             // every budget that allows them ([`BudgetPolicies::behaviour`])
             let rng = rand_chacha::ChaCha8Rng::seed_from_u64(cfg.seed ^ u64::from(video.id));
             period(Chooser::Random(Box::new(rng), fits))
         }
-        BudgetStrategy::Approxdet => period(Chooser::Approxdet),
-        BudgetStrategy::MdpTracker => Brain::Controller(Box::new(Controller::new(
+        Plan::Strategy(BudgetStrategy::Approxdet) => period(Chooser::Approxdet),
+        Plan::Strategy(BudgetStrategy::MdpTracker) => Brain::Controller(Box::new(Controller::new(
             Bundle::parse(bundle).map_err(|e| PolicyError::Bundle {
                 path: "<memory>".into(),
                 message: e.to_string(),
             })?,
         ))),
-        BudgetStrategy::Budget => {
+        Plan::Strategy(BudgetStrategy::Budget) => {
             let b = Bundle::parse(bundle).map_err(|e| PolicyError::Bundle {
                 path: "<memory>".into(),
                 message: e.to_string(),
@@ -413,7 +481,7 @@ pub fn stream_strategy(
             s.keep_budget(cfg.keep_window);
             Brain::Scheduler(Box::new(s), Vec::new())
         }
-        BudgetStrategy::Oracle => Brain::Oracle { fallback: st },
+        Plan::Strategy(BudgetStrategy::Oracle) => Brain::Oracle { fallback: st },
     };
     let ctx = Ctx {
         pol,
@@ -481,9 +549,29 @@ pub fn stream_strategy(
     })
 }
 
+/// The fixed actions the hindsight bound chooses among: every budget's choices
+/// ([`BudgetPolicies::choices`]), ascending.
+fn hindsight_actions(pol: &BudgetPolicies) -> Vec<usize> {
+    let mut fixed: Vec<usize> = pol
+        .config
+        .budgets_ms
+        .iter()
+        .flat_map(|&b| pol.choices(b))
+        .collect();
+    fixed.sort_unstable();
+    fixed.dedup();
+    fixed
+}
+
+/// The streams [`stream_all`] runs per video, each reported to its `progress` once.
+pub fn stream_steps(pol: &BudgetPolicies) -> usize {
+    pol.config.budgets_ms.len() * BudgetStrategy::ALL.len() + hindsight_actions(pol).len()
+}
+
 /// Every strategy at every budget over `videos`: the runs, keyed by budget index.
 /// Each video's frames are decoded once for all its streams, and videos run in
-/// parallel (rayon); the result does not depend on the thread count.
+/// parallel (rayon); the result does not depend on the thread count. `progress` is
+/// called [`stream_steps`] times per video.
 #[allow(clippy::type_complexity, clippy::too_many_arguments)]
 pub fn stream_all(
     log: &ReplayLog,
@@ -500,41 +588,96 @@ pub fn stream_all(
         .flat_map(|k| BudgetStrategy::ALL.map(|s| (k, s)))
         .collect();
     let alike = first_alike(pol, &combos);
-    // per video, per (budget, strategy), its clock runs
-    let per_video: Vec<Vec<Vec<BudgetRun>>> = videos
+    let fixed = hindsight_actions(pol);
+    let fps = pol.config.fps;
+    let forecast = pol.config.forecaster();
+    // per video: per (budget, strategy), its clock runs (none for the hindsight bound,
+    // chosen below); per fixed action, its clock runs and their tally
+    type PerVideo = (Vec<Vec<BudgetRun>>, Vec<(Vec<BudgetRun>, Tally)>);
+    let per_video: Vec<PerVideo> = videos
         .par_iter()
         .map(|v| {
             let cached = crate::replay::MemoryFrames::of_video(frames, v)?;
             let cache = VideoCache::default();
+            let stream = |plan: Plan, k: usize| {
+                (0..pol.config.clock_runs)
+                    .map(|c| {
+                        stream_plan(log, v, &cached, cost, pol, k, bundle, plan, iou, c, &cache)
+                    })
+                    .collect::<Result<Vec<_>>>()
+            };
             let mut out: Vec<Vec<BudgetRun>> = Vec::with_capacity(combos.len());
             for (i, &(k, s)) in combos.iter().enumerate() {
                 // a strategy that behaves the same under an earlier budget (the paper's
                 // MDP knows none; the same static variant; the same actions to draw
                 // from) streams the same: its runs stand for this budget too
                 let runs = match alike[i] {
+                    _ if s == BudgetStrategy::Hindsight => Vec::new(),
                     j if j < i => out[j].clone(),
-                    _ => (0..pol.config.clock_runs)
-                        .map(|c| {
-                            stream_strategy(
-                                log, v, &cached, cost, pol, k, bundle, s, iou, c, &cache,
-                            )
-                        })
-                        .collect::<Result<Vec<_>>>()?,
+                    _ => stream(Plan::Strategy(s), k)?,
                 };
                 progress();
                 out.push(runs);
             }
-            Ok(out)
+            let arr = v.arrivals_ms(fps);
+            let mut fixed_runs = Vec::with_capacity(fixed.len());
+            for &a in &fixed {
+                // static + tracker's schedule under some budget has streamed already
+                let done = combos.iter().zip(&out).find(|((k, s), _)| {
+                    pol.behaviour(*k, *s) == Behaviour::Fixed(BudgetStrategy::StaticTracker, a)
+                });
+                let runs = match done {
+                    Some((_, runs)) => runs.clone(),
+                    None => stream(Plan::Fixed(a), 0)?,
+                };
+                let mut tally = Tally::default();
+                for r in &runs {
+                    tally.add(&Tally::of(log.classes, v, &arr, r, forecast));
+                }
+                progress();
+                fixed_runs.push((runs, tally));
+            }
+            Ok((out, fixed_runs))
         })
         .collect::<Result<_>>()?;
+    // the hindsight bound, per budget: the runs of each video's chosen schedule
+    let tallies: Vec<Vec<Tally>> = per_video
+        .iter()
+        .map(|(_, f)| f.iter().map(|(_, t)| t.clone()).collect())
+        .collect();
+    let hindsight: Vec<Vec<usize>> = (0..pol.config.budgets_ms.len())
+        .map(|k| {
+            let b = pol.config.budgets_ms[k];
+            let allowed: Vec<usize> = pol
+                .choices(b)
+                .iter()
+                .filter_map(|a| fixed.iter().position(|f| f == a))
+                .collect();
+            let start = fixed
+                .iter()
+                .position(|&a| a == pol.static_tracker(k))
+                .or_else(|| allowed.first().copied())
+                .unwrap_or(0);
+            hindsight::choose(log.classes, &tallies, &allowed, start, b)
+        })
+        .collect();
     Ok(combos
         .iter()
         .enumerate()
         .map(|(i, &(k, s))| {
-            let runs = per_video
-                .iter()
-                .flat_map(|v| v[i].iter().cloned())
-                .collect();
+            let runs = match s {
+                BudgetStrategy::Hindsight => per_video
+                    .iter()
+                    .zip(&hindsight[k])
+                    .flat_map(|((_, f), &j)| {
+                        f.get(j).into_iter().flat_map(|(r, _)| r.iter().cloned())
+                    })
+                    .collect(),
+                _ => per_video
+                    .iter()
+                    .flat_map(|(v, _)| v[i].iter().cloned())
+                    .collect(),
+            };
             (k, s, runs)
         })
         .collect())

@@ -6,7 +6,8 @@ use crate::error::Result;
 use crate::replay::{ReplayLog, VideoLog};
 use crate::scoring::{ground_truth, scenario_groups};
 use crate::stream::{StreamRun, StreamTiming, sap, streaming_images_with, timing};
-use frugal_models::metrics::{ImageResult, Interpolation, evaluate};
+use frugal_models::metrics::{ImageResult, Interpolation, ap_of_records, class_records, evaluate};
+use frugal_runtime::ClassId;
 use frugal_runtime::ForecastParams;
 use serde::{Deserialize, Serialize};
 
@@ -348,4 +349,105 @@ pub fn plot_budget(stem: &std::path::Path, scores: &[BudgetScore]) -> Result<()>
         ("speed-up vs static (device time per frame)", "F1 @ IoU 0.5"),
         &series(&|r| (r.speedup_vs_static, r.f1)),
     )
+}
+
+/// What scoring needs of one or more streamed runs by sAP@0.5 and device time, without
+/// streaming them again: per class, the truth boxes and the `(score, is_tp)` match
+/// records of the streamed outputs at IoU 0.5 ([`class_records`]), and the device
+/// compute and frames of video time. Tallies add up; sAP@0.5 of pooled tallies is
+/// [`crate::stream::sap`]'s first figure on the same runs.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Tally {
+    records: Vec<(usize, Vec<(f32, bool)>)>,
+    /// Device compute, ms.
+    pub busy_ms: f64,
+    /// Frames of video time.
+    pub frames: usize,
+}
+
+impl Tally {
+    /// The tally of run `r` of video `v`, whose frames arrive at `arr` (the whole
+    /// video's arrivals; the run is scored from its first frame streamed).
+    pub fn of(
+        classes: usize,
+        v: &VideoLog,
+        arr: &[f64],
+        r: &BudgetRun,
+        forecast: Option<ForecastParams>,
+    ) -> Self {
+        let arr = &arr[r.start.min(arr.len())..];
+        let truth: Vec<_> = (r.start..v.frames.len())
+            .map(|f| ground_truth(v, f))
+            .collect();
+        let images = streaming_images_with(arr, &truth, &r.run, forecast);
+        Tally {
+            records: (0..classes)
+                .map(|c| class_records(&images, c as ClassId, 0.5))
+                .collect(),
+            busy_ms: r.run.outputs.iter().map(|o| o.device_ms).sum(),
+            frames: arr.len(),
+        }
+    }
+
+    /// A tally of these per-class `(truth boxes, match records)`, device ms and frames.
+    #[cfg(test)]
+    pub fn of_parts(records: Vec<(usize, Vec<(f32, bool)>)>, busy_ms: f64, frames: usize) -> Self {
+        Tally {
+            records,
+            busy_ms,
+            frames,
+        }
+    }
+
+    /// Adds `other` in.
+    pub fn add(&mut self, other: &Tally) {
+        if self.records.len() < other.records.len() {
+            self.records
+                .resize_with(other.records.len(), Default::default);
+        }
+        for (mine, (n, recs)) in self.records.iter_mut().zip(&other.records) {
+            mine.0 += n;
+            mine.1.extend_from_slice(recs);
+        }
+        self.busy_ms += other.busy_ms;
+        self.frames += other.frames;
+    }
+}
+
+/// sAP@0.5 of `tallies` pooled: the mean over classes with truth of each class's
+/// COCO-interpolated AP.
+pub(super) fn pooled_sap50<'t>(
+    classes: usize,
+    tallies: impl Iterator<Item = &'t Tally> + Clone,
+) -> f64 {
+    let aps: Vec<f64> = (0..classes)
+        .filter_map(|c| {
+            let mut n = 0;
+            let mut recs = Vec::new();
+            for t in tallies.clone() {
+                if let Some((tn, tr)) = t.records.get(c) {
+                    n += tn;
+                    recs.extend_from_slice(tr);
+                }
+            }
+            ap_of_records(n, recs, Interpolation::Coco101)
+        })
+        .collect();
+    if aps.is_empty() {
+        0.0
+    } else {
+        aps.iter().sum::<f64>() / aps.len() as f64
+    }
+}
+
+/// Device ms per frame of `tallies` pooled (0 without frames).
+pub(super) fn ms_per_frame<'t>(tallies: impl IntoIterator<Item = &'t Tally>) -> f64 {
+    let (busy, frames) = tallies
+        .into_iter()
+        .fold((0.0, 0), |(b, f), t| (b + t.busy_ms, f + t.frames));
+    if frames > 0 {
+        busy / frames as f64
+    } else {
+        0.0
+    }
 }

@@ -40,19 +40,17 @@
 //! tuning clock runs are tried, most looked-up first, for at most
 //! [`BudgetConfig::search_rounds`] sweeps.
 
-use super::score::score_runs;
+use super::score::{Tally, ms_per_frame, pooled_sap50, score_runs};
 use super::{BudgetRun, BudgetStrategy, stream_strategy};
 use crate::TrainedPolicy;
 use crate::budget::{BudgetConfig, SearchLevel, VideoCache};
 use crate::error::{PolicyError, Result};
 use crate::replay::{Frames, MemoryFrames, ReplayLog, VideoLog};
 use crate::scoring::TrackerCost;
-use crate::scoring::ground_truth;
-use crate::stream::{nearest_rank, streaming_images_with};
-use frugal_models::metrics::{Interpolation, ap_of_records, class_records};
+use crate::stream::nearest_rank;
+use frugal_runtime::ForecastParams;
 use frugal_runtime::bundle::Thresholds;
 use frugal_runtime::schedule::CONTENT_STATES;
-use frugal_runtime::{ClassId, ForecastParams};
 use serde::{Deserialize, Serialize};
 use std::sync::Mutex;
 
@@ -88,10 +86,10 @@ pub struct SearchTrace {
 
 /// One table's figures on the tuning clock runs.
 #[derive(Clone, Debug)]
-struct Figures {
-    sap50: f64,
-    halves: [f64; 2],
-    ms_per_frame: f64,
+pub(super) struct Figures {
+    pub sap50: f64,
+    pub halves: [f64; 2],
+    pub ms_per_frame: f64,
 }
 
 /// What the search keeps of one clock run of one video: enough to score any set of
@@ -100,12 +98,8 @@ struct Figures {
 struct RunFig {
     /// The table states the run looked up (sorted, distinct), and how often each.
     queried: Vec<(u32, u32)>,
-    /// Per class: truth boxes, and `(score, is_tp)` of the streamed outputs
-    /// ([`class_records`]).
-    records: Vec<(usize, Vec<(f32, bool)>)>,
-    /// Device compute, ms, and frames of video time.
-    busy_ms: f64,
-    frames: usize,
+    /// Its match records and device time.
+    tally: Tally,
 }
 
 impl RunFig {
@@ -203,11 +197,6 @@ impl Clock<'_> {
     }
 
     fn run_fig(&self, v: &VideoLog, arr: &[f64], r: &BudgetRun) -> RunFig {
-        let arr = &arr[r.start.min(arr.len())..];
-        let truth: Vec<_> = (r.start..v.frames.len())
-            .map(|f| ground_truth(v, f))
-            .collect();
-        let images = streaming_images_with(arr, &truth, &r.run, self.forecast);
         let mut queried: Vec<(u32, u32)> = Vec::new();
         let mut states = r.queried.clone();
         states.sort_unstable();
@@ -219,50 +208,26 @@ impl Clock<'_> {
         }
         RunFig {
             queried,
-            records: (0..self.classes)
-                .map(|c| class_records(&images, c as ClassId, 0.5))
-                .collect(),
-            busy_ms: r.run.outputs.iter().map(|o| o.device_ms).sum(),
-            frames: arr.len(),
+            tally: Tally::of(self.classes, v, arr, r, self.forecast),
         }
     }
 
-    /// sAP@0.5 of the runs of the videos `keep` selects, pooled ([`crate::stream::sap`]'s
-    /// first figure on the same pairs).
-    fn sap50(&self, runs: &Runs, keep: impl Fn(usize) -> bool) -> f64 {
-        let aps: Vec<f64> = (0..self.classes)
-            .filter_map(|c| {
-                let mut n = 0;
-                let mut recs = Vec::new();
-                for r in runs
-                    .iter()
-                    .enumerate()
-                    .filter(|(i, _)| keep(*i))
-                    .flat_map(|(_, rs)| rs)
-                {
-                    n += r.records[c].0;
-                    recs.extend_from_slice(&r.records[c].1);
-                }
-                ap_of_records(n, recs, Interpolation::Coco101)
-            })
-            .collect();
-        if aps.is_empty() {
-            0.0
-        } else {
-            aps.iter().sum::<f64>() / aps.len() as f64
-        }
+    /// sAP@0.5 of the runs of the videos `keep` selects, pooled.
+    fn sap50(&self, runs: &Runs, keep: impl Fn(usize) -> bool + Clone) -> f64 {
+        pooled_sap50(
+            self.classes,
+            runs.iter()
+                .enumerate()
+                .filter(move |(i, _)| keep(*i))
+                .flat_map(|(_, rs)| rs.iter().map(|r| &r.tally)),
+        )
     }
 
     fn figures(&self, runs: &Runs) -> Figures {
-        let (busy, frames) = busy_frames(runs.iter().flatten());
         Figures {
             sap50: self.sap50(runs, |_| true),
-            halves: [0, 1].map(|h| self.sap50(runs, |i| i % 2 == h)),
-            ms_per_frame: if frames > 0 {
-                busy / frames as f64
-            } else {
-                0.0
-            },
+            halves: [0, 1].map(|h| self.sap50(runs, move |i| i % 2 == h)),
+            ms_per_frame: ms_per_frame(runs.iter().flatten().map(|r| &r.tally)),
         }
     }
 
@@ -275,12 +240,6 @@ impl Clock<'_> {
             .map(|rs| rs.into_iter().map(|(_, r)| r).collect())
             .collect())
     }
-}
-
-/// Device compute (ms) and frames of video time of `runs`.
-fn busy_frames<'r>(runs: impl IntoIterator<Item = &'r RunFig>) -> (f64, usize) {
-    runs.into_iter()
-        .fold((0.0, 0), |(b, f), r| (b + r.busy_ms, f + r.frames))
 }
 
 fn no_tables() -> PolicyError {
@@ -497,10 +456,7 @@ pub fn search_tables(
         // device ms per frame of each video over its clock runs
         let mut per_video: Vec<f64> = runs
             .iter()
-            .map(|rs| {
-                let (busy, frames) = busy_frames(rs);
-                busy / frames.max(1) as f64
-            })
+            .map(|rs| ms_per_frame(rs.iter().map(|r| &r.tally)))
             .collect();
         per_video.sort_by(f64::total_cmp);
         if let Some(b) = policy.budget.as_mut() {
@@ -563,7 +519,7 @@ fn move_groups(level: SearchLevel, states: usize, variants: usize) -> Vec<Vec<us
 
 /// Whether `fig` makes a better start than `best` under `budget`: within the budget
 /// (or cheaper, when `best` is not) and a higher sAP@0.5.
-fn better_start(fig: &Figures, best: &Figures, budget: f64) -> bool {
+pub(super) fn better_start(fig: &Figures, best: &Figures, budget: f64) -> bool {
     let fits = |f: &Figures| f.ms_per_frame <= budget + 1e-9;
     match (fits(fig), fits(best)) {
         (true, false) => true,

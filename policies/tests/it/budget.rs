@@ -449,7 +449,11 @@ fn a_shared_tracking_cache_changes_no_stream() {
     for video in log.split(Split::Test) {
         let shared = VideoCache::default();
         for k in 0..pol.config.budgets_ms.len() {
-            for s in BudgetStrategy::ALL {
+            // the hindsight bound is chosen over every video, not streamed on one
+            for s in BudgetStrategy::ALL
+                .into_iter()
+                .filter(|&s| s != BudgetStrategy::Hindsight)
+            {
                 for c in 0..pol.config.clock_runs {
                     let run_with = |cache: &VideoCache| {
                         stream(&log, video, &frames, &pol, k, &bytes, s, c, cache)
@@ -599,6 +603,85 @@ fn each_clock_run_starts_every_strategy_at_its_own_phase() {
     assert_eq!(
         all.timing.frames,
         3 * video.frames.len() - (0..3).map(|c| (c % longest) as usize).sum::<usize>()
+    );
+}
+
+/// The hindsight bound runs, on every test video, one fixed schedule the budget allows
+/// (one variant, the tracker between its detections); its choices together keep the
+/// budget wherever static + tracker does, and score no less than static + tracker. It
+/// cannot be streamed on one video.
+#[test]
+fn the_hindsight_bound_runs_one_allowed_fixed_schedule_per_video_and_no_worse_than_static_tracker()
+{
+    let (log, frames, pol) = trained();
+    let (_, bytes) = bundled(&log, &pol);
+    let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
+    let steps = std::sync::atomic::AtomicUsize::new(0);
+    let runs = stream_all(&log, &videos, &frames, COST, &pol, &bytes, 0.5, &|| {
+        steps.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    })
+    .unwrap();
+    assert_eq!(
+        steps.into_inner(),
+        videos.len() * frugal_policies::budget_eval::stream_steps(&pol)
+    );
+    let scores = budget_scores(&log, &videos, &pol, &runs, 0.5);
+    let p_n = pol.config.periods.len();
+    for (k, &budget) in pol.config.budgets_ms.iter().enumerate() {
+        let choices = pol.choices(budget);
+        let (_, _, hind) = runs
+            .iter()
+            .find(|r| r.0 == k && r.1 == BudgetStrategy::Hindsight)
+            .unwrap();
+        assert_eq!(hind.len(), videos.len() * pol.config.clock_runs as usize);
+        for v in &videos {
+            let mine: Vec<&BudgetRun> = hind.iter().filter(|r| r.video == v.id).collect();
+            assert_eq!(mine.len(), pol.config.clock_runs as usize);
+            let variants: std::collections::BTreeSet<u16> = mine
+                .iter()
+                .flat_map(|r| r.detect.iter().flatten().copied())
+                .collect();
+            assert_eq!(variants.len(), 1, "video {}: {variants:?}", v.id);
+            let variant = usize::from(*variants.first().unwrap());
+            assert!(
+                choices.iter().any(|&a| a / p_n == variant),
+                "video {}: variant {variant} is in no allowed action",
+                v.id
+            );
+        }
+        let row = |s: BudgetStrategy| {
+            scores
+                .iter()
+                .find(|r| r.scenario == "all" && r.strategy == s.name() && r.budget_ms == budget)
+                .unwrap()
+        };
+        let (h, st) = (
+            row(BudgetStrategy::Hindsight),
+            row(BudgetStrategy::StaticTracker),
+        );
+        if st.timing.device_ms_per_frame <= budget + 1e-9 {
+            assert!(h.timing.device_ms_per_frame <= budget + 1e-9, "{h:?}");
+            assert!(h.sap50 >= st.sap50 - 1e-12, "{} vs {}", h.sap50, st.sap50);
+        } else {
+            assert!(h.timing.device_ms_per_frame <= st.timing.device_ms_per_frame + 1e-9);
+        }
+    }
+    let cache = VideoCache::default();
+    assert!(
+        stream_strategy(
+            &log,
+            videos[0],
+            &frames,
+            COST,
+            &pol,
+            0,
+            &bytes,
+            BudgetStrategy::Hindsight,
+            0.5,
+            0,
+            &cache
+        )
+        .is_err()
     );
 }
 

@@ -1,0 +1,115 @@
+//! The hindsight bound (`hindsight`): per video, one fixed (variant, every `N`)
+//! schedule with the tracker, chosen knowing the scored videos' own truth, the choices
+//! together keeping the budget in device ms per frame over all the videos. No drone can
+//! run it. It says how much a scheduler that picks the right schedule for each video
+//! could gain over the best fixed schedule on these videos: when the bound itself leads
+//! static + tracker by little, so must any policy that adapts per video, however good
+//! its state.
+//!
+//! The choice is a coordinate ascent on pooled sAP@0.5: from static + tracker's
+//! schedule on every video, each video in turn takes the schedule (of those within the
+//! budget's burst, [`crate::budget::BudgetPolicies::choices`]) that makes the best
+//! start ([`super::search`]'s rule: within the budget first, then the higher pooled
+//! sAP@0.5), in sweeps until none changes (at most [`SWEEPS`]). An ascent finds a good
+//! choice, not always the best one, so the bound it gives is a lower bound on the best
+//! per-video choice; and a policy that changes schedule within a video is not bounded by
+//! it.
+
+use super::score::{Tally, ms_per_frame, pooled_sap50};
+use super::search::{Figures, better_start};
+
+/// Sweeps over the videos at most.
+pub const SWEEPS: usize = 6;
+
+/// The figures of `choice` (per video, an index into its tallies).
+fn figures(classes: usize, tallies: &[Vec<Tally>], choice: &[usize]) -> Figures {
+    let pick = || tallies.iter().zip(choice).map(|(t, &j)| &t[j]);
+    let sap50 = pooled_sap50(classes, pick());
+    Figures {
+        sap50,
+        halves: [sap50; 2],
+        ms_per_frame: ms_per_frame(pick()),
+    }
+}
+
+/// Per video, the index (into `tallies[video]`, one tally per fixed schedule, each
+/// pooled over the video's clock runs) of the schedule the bound runs under `budget`:
+/// the choice is among `allowed` indices, from `start` on every video.
+pub(super) fn choose(
+    classes: usize,
+    tallies: &[Vec<Tally>],
+    allowed: &[usize],
+    start: usize,
+    budget: f64,
+) -> Vec<usize> {
+    let mut choice = vec![start; tallies.len()];
+    let mut cur = figures(classes, tallies, &choice);
+    for _ in 0..SWEEPS {
+        let mut changed = false;
+        for i in 0..tallies.len() {
+            let mut best: Option<(usize, Figures)> = None;
+            for &j in allowed {
+                if j == choice[i] || j >= tallies[i].len() {
+                    continue;
+                }
+                let mut cand = choice.clone();
+                cand[i] = j;
+                let f = figures(classes, tallies, &cand);
+                if better_start(&f, best.as_ref().map_or(&cur, |b| &b.1), budget) {
+                    best = Some((j, f));
+                }
+            }
+            if let Some((j, f)) = best {
+                choice[i] = j;
+                cur = f;
+                changed = true;
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+    choice
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two videos, one class with two truth boxes each; schedule 0 costs 1 ms per frame
+    /// and finds one box, schedule 1 costs 3 and finds both.
+    fn tallies() -> Vec<Vec<Tally>> {
+        let cheap = || Tally::of_parts(vec![(2, vec![(0.9, true), (0.8, false)])], 10.0, 10);
+        let dear = |s: f32| Tally::of_parts(vec![(2, vec![(s, true), (s - 0.1, true)])], 30.0, 10);
+        vec![vec![cheap(), dear(0.9)], vec![cheap(), dear(0.7)]]
+    }
+
+    #[test]
+    fn the_bound_takes_the_dear_schedule_where_the_budget_lets_it_and_never_scores_less() {
+        let t = tallies();
+        let start = figures(1, &t, &[0, 0]);
+        // 2 ms per frame: one video of the two can run the dear schedule
+        let c = choose(1, &t, &[0, 1], 0, 2.0);
+        assert_eq!(c.iter().filter(|&&j| j == 1).count(), 1, "{c:?}");
+        let f = figures(1, &t, &c);
+        assert!(f.ms_per_frame <= 2.0 + 1e-12);
+        assert!(f.sap50 > start.sap50, "{} vs {}", f.sap50, start.sap50);
+        // 3 ms: both
+        assert_eq!(choose(1, &t, &[0, 1], 0, 3.0), vec![1, 1]);
+        // 1 ms, or the dear schedule not allowed: the start
+        assert_eq!(choose(1, &t, &[0, 1], 0, 1.0), vec![0, 0]);
+        assert_eq!(choose(1, &t, &[0], 0, 3.0), vec![0, 0]);
+    }
+
+    #[test]
+    fn from_a_start_over_the_budget_the_bound_comes_down_to_it() {
+        let t = tallies();
+        // start dear everywhere (3 ms) under 2 ms: one video comes down to 1 ms
+        let c = choose(1, &t, &[0, 1], 1, 2.0);
+        assert!(figures(1, &t, &c).ms_per_frame <= 2.0 + 1e-12, "{c:?}");
+        // nothing keeps 0.5 ms: the cheapest choice
+        assert_eq!(choose(1, &t, &[0, 1], 1, 0.5), vec![0, 0]);
+        // no videos, nothing to choose
+        assert!(choose(1, &[], &[0, 1], 0, 2.0).is_empty());
+    }
+}
