@@ -140,10 +140,26 @@ pub fn collect(run: &Path) -> Figures {
                 ) {
                     put(format!("{k}.margin"), Some(signed(100.0 * (o - bb))));
                 }
+                let versus = |want: &str| {
+                    m["versus"]
+                        .as_array()
+                        .into_iter()
+                        .flatten()
+                        .find(|p| p[0].as_str() == Some(want))
+                        .and_then(|p| p[1].as_f64())
+                };
                 for pair in m["versus"].as_array().into_iter().flatten() {
                     if let (Some(name), Some(d)) = (pair[0].as_str(), pair[1].as_f64()) {
                         put(format!("{k}.vs.{name}"), Some(signed(100.0 * d)));
                     }
+                }
+                // how far the hindsight bound leads static + tracker: the room a
+                // scheduler choosing per video has on these videos
+                if let (Some(st), Some(h)) = (versus("static+tracker"), versus("hindsight")) {
+                    put(
+                        format!("{k}.hindsight_room"),
+                        Some(signed(100.0 * (st - h))),
+                    );
                 }
             }
         }
