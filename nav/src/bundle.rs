@@ -1,5 +1,6 @@
 //! The bundle's perception ([`BundlePerception`]): the policy bundle's [`Pilot`]
-//! (controller + KLT trackers) deciding per frame, the chosen variant run through ONNX
+//! (the paper's controller, or one budget table's scheduler, + KLT trackers) deciding
+//! per frame, the chosen variant run through ONNX
 //! Runtime, and the reference variant's re-reading of a frame on the navigator's
 //! request. The maze simulator flies it (`frugal_sim::AdaptivePerception`) and the
 //! drone-side program runs it on camera frames.
@@ -166,6 +167,8 @@ pub struct BundlePerception {
     detected_us: u64,
     /// The variants run on the last frame [`BundlePerception::perceive`] processed.
     last_run: Vec<usize>,
+    /// The budget table flown ([`BundlePerception::with_budget`]), in device ms.
+    budget_ms: Option<f32>,
 }
 
 impl BundlePerception {
@@ -210,13 +213,69 @@ impl BundlePerception {
             tracked_us: 0,
             detected_us: 0,
             last_run: Vec::new(),
+            budget_ms: None,
         })
+    }
+
+    /// Fly the bundle's budget table for `budget_ms` (device ms per frame) with the
+    /// budget scheduler instead of the paper's controller ([`Pilot::scheduled`]): per
+    /// detection, the table's variant and detection period for the content, confidence
+    /// and current variant, the trackers in between. With `keep_window > 0` a budget
+    /// keeper of that many frames holds the table to its budget on this device
+    /// ([`Pilot::with_budget_keeper`]), debited every frame's measured compute,
+    /// confirmations included: on the drone, the compute of the device the tables were
+    /// made for. [`BundlePerception::perceive`]'s `index` is then the frame's number in
+    /// the input, dropped frames counted, because periods and the keeper's credit count
+    /// arriving frames. Call it after [`BundlePerception::with_carry`], which flies the
+    /// controller again. Fails, naming the budgets the bundle holds, when none is
+    /// `budget_ms`.
+    pub fn with_budget(
+        mut self,
+        budget_ms: f32,
+        keep_window: u32,
+    ) -> Result<Self, PerceptionError> {
+        let schedules = self
+            .bundle
+            .schedules()
+            .ok_or("the bundle holds no budget tables (`frugal policy budget` makes them)")?;
+        let budgets: Vec<f32> = (0..schedules.budget_count())
+            .filter_map(|k| schedules.budget(k).map(|b| b.budget_ms))
+            .collect();
+        let k = budgets
+            .iter()
+            .position(|&b| (b - budget_ms).abs() <= 1e-3 * b.abs().max(1.0))
+            .ok_or_else(|| {
+                let held: Vec<String> = budgets.iter().map(|b| format!("{b} ms")).collect();
+                format!(
+                    "no budget table for {budget_ms} ms; the bundle holds {}",
+                    held.join(", ")
+                )
+            })?;
+        self.pilot = Pilot::scheduled(self.bundle, k)?.with_budget_keeper(keep_window);
+        self.budget_ms = Some(budgets[k]);
+        self.label.push_str(&format!("-budget-{}ms", budgets[k]));
+        Ok(self)
+    }
+
+    /// The budget table flown, device ms per frame ([`BundlePerception::with_budget`]);
+    /// `None` with the paper's controller.
+    pub fn budget_ms(&self) -> Option<f32> {
+        self.budget_ms
+    }
+
+    /// Periodic detections the budget keeper has postponed so far (0 without one).
+    pub fn postponed(&self) -> u32 {
+        self.pilot
+            .scheduler()
+            .and_then(|s| s.keeper())
+            .map_or(0, |k| k.postponed())
     }
 
     /// Carry detections from `carry`'s bucket up ([`Pilot::with_carry`]; the default
     /// is [`Carry::Optimal`]). Call before the first frame.
     pub fn with_carry(mut self, carry: Carry) -> Self {
         self.pilot = Pilot::new(self.bundle).with_carry(carry);
+        self.budget_ms = None;
         let kind = match carry {
             Carry::Optimal => "",
             Carry::GoodEnough => "-carry-ge",
@@ -298,6 +357,8 @@ impl BundlePerception {
             .map(|(i, _)| i)
             .collect();
         let elapsed = started.elapsed();
+        // the budget keeper's debit (a pilot over the controller ignores it)
+        self.pilot.spent((elapsed.as_secs_f64() * 1e3) as f32);
         let us = u64::try_from(elapsed.as_micros()).unwrap_or(u64::MAX);
         if decision == Decision::Track {
             self.tracked_frames += 1;
@@ -330,9 +391,11 @@ impl BundlePerception {
             frame,
         )?;
         detections.retain(|d| d.score >= t_c);
+        let compute_ms = started.elapsed().as_secs_f64() * 1e3;
+        self.pilot.spent(compute_ms as f32);
         Ok(Percept {
             detections,
-            compute_ms: started.elapsed().as_secs_f64() * 1e3,
+            compute_ms,
             tracked: false,
         })
     }

@@ -80,6 +80,16 @@ pub struct Args {
     /// ONNX Runtime intra-op threads per variant.
     #[arg(long, default_value_t = 1)]
     pub threads: usize,
+    /// Fly the bundle's budget table for this budget (device ms per frame, one of the
+    /// budgets the bundle holds) with the budget scheduler, instead of the paper's
+    /// controller.
+    #[arg(long, requires = "bundle")]
+    pub budget_ms: Option<f32>,
+    /// With `--budget-ms`: the budget keeper's window, in frames of budget (0: no
+    /// keeper, every period as the table says). The keeper is debited each frame's
+    /// measured compute on this machine.
+    #[arg(long, default_value_t = 30)]
+    pub keep_window: u32,
 }
 
 /// Why the pilot could not start or had to stop.
@@ -154,6 +164,10 @@ pub struct Summary {
     pub latency_p95_ms: f64,
     /// Mean compute per processed frame (perception, confirmations included), ms.
     pub compute_ms_mean: f64,
+    /// The budget table flown (`--budget-ms`), device ms per frame.
+    pub budget_ms: Option<f32>,
+    /// Periodic detections the budget keeper postponed.
+    pub postponed: u32,
     /// Stopped by SIGINT or SIGTERM.
     pub interrupted: bool,
     /// Why the input ended early, when it failed.
@@ -178,7 +192,15 @@ impl Summary {
             self.fps,
             self.latency_p50_ms,
             self.latency_p95_ms
-        )
+        ) + &self
+            .budget_ms
+            .map(|b| {
+                format!(
+                    "; budget table {b} ms, {} periodic detections postponed",
+                    self.postponed
+                )
+            })
+            .unwrap_or_default()
     }
 }
 
@@ -229,6 +251,8 @@ impl Perception {
         frame: u64,
     ) -> Result<frugal_nav::Percept, frugal_nav::PerceptionError> {
         match self {
+            // a budget table's periods count arriving frames, dropped ones too
+            Perception::Bundle(p) if p.budget_ms().is_some() => p.perceive(image, frame),
             Perception::Bundle(p) => p.perceive(image, index),
             Perception::Replay(r) => Ok(r.percept(frame)),
         }
@@ -302,12 +326,17 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
     // first frame
     let mut perception = match (&args.bundle, &args.detections) {
         (_, Some(path)) => Perception::Replay(replay::Replay::read(path)?),
-        (Some(dir), None) => Perception::Bundle(Box::new(
-            BundlePerception::open(dir, args.threads).map_err(|e| PilotError::Bundle {
+        (Some(dir), None) => {
+            let bad = |e: frugal_nav::PerceptionError| PilotError::Bundle {
                 path: dir.clone(),
                 message: e.to_string(),
-            })?,
-        )),
+            };
+            let mut p = BundlePerception::open(dir, args.threads).map_err(bad)?;
+            if let Some(b) = args.budget_ms {
+                p = p.with_budget(b, args.keep_window).map_err(bad)?;
+            }
+            Perception::Bundle(Box::new(p))
+        }
         (None, None) => {
             return Err(PilotError::Usage(
                 "--bundle or --detections is required".into(),
@@ -603,6 +632,10 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
     summary.latency_p95_ms = percentile(&latencies, 0.95);
     summary.compute_ms_mean = compute_total / summary.frames.max(1) as f64;
     summary.input_error = mailbox.error();
+    if let Perception::Bundle(p) = &perception {
+        summary.budget_ms = p.budget_ms();
+        summary.postponed = p.postponed();
+    }
     drop(link);
     if let Some(out) = out.as_mut() {
         let line = json!({ "summary": summary });

@@ -188,4 +188,125 @@ fn through_a_real_bundle_the_pilot_perceives_and_acts_as_the_simulator_frame_by_
         got.len(),
         summary.commands
     );
+    flies_the_budget_tables(tmp.path(), &rec, &bundle);
+}
+
+/// `--budget-ms` flies each budget table the bundle ships with the budget scheduler:
+/// the first frame detects; a detection frame runs one variant, one the table names; without a keeper, detections come at most the table's
+/// longest period apart (a lost track brings one forward), every frame detects when
+/// every action's period is 1 and some are only tracked when none is; with the keeper, a
+/// periodic detection waits at most one more period. A budget the bundle does not hold
+/// is refused, naming those it does.
+fn flies_the_budget_tables(tmp: &Path, rec: &Path, bundle: &Path) {
+    let bytes = std::fs::read(bundle.join(frugal_nav::BUNDLE_FILE)).expect("bundle file");
+    let parsed = frugal_runtime::Bundle::parse(&bytes).expect("bundle parses");
+    let tables = parsed.schedules().expect("the bundle ships budget tables");
+    assert!(tables.budget_count() > 0);
+    let mut budgets = Vec::new();
+    for k in 0..tables.budget_count() {
+        let budget = tables.budget(k).expect("budget record").budget_ms;
+        budgets.push(budget);
+        let periods: std::collections::BTreeSet<u32> = (0..tables.state_count())
+            .filter_map(|s| tables.action(k, s))
+            .map(|a| a.period)
+            .collect();
+        let longest = u64::from(*periods.last().expect("a table has actions"));
+        for (window, most) in [("0", longest), ("30", 2 * longest)] {
+            let out = tmp.join(format!("budget-{k}-{window}.jsonl"));
+            let b = budget.to_string();
+            let summary = pilot(
+                tmp,
+                rec,
+                &out,
+                &[
+                    "--bundle",
+                    p(bundle),
+                    "--budget-ms",
+                    &b,
+                    "--keep-window",
+                    window,
+                ],
+            );
+            assert_eq!(summary.budget_ms, Some(budget));
+            let got = lines(&out);
+            assert!(!got.is_empty());
+            let detected: Vec<u64> = got
+                .iter()
+                .filter(|l| l["decision"] == "detect")
+                .map(|l| l["frame"].as_u64().expect("frame"))
+                .collect();
+            assert_eq!(detected.first(), got[0]["frame"].as_u64().as_ref());
+            // one detection per detection frame, by a variant the table names
+            let named: std::collections::BTreeSet<&str> = (0..tables.state_count())
+                .filter_map(|s| tables.action(k, s))
+                .filter_map(|a| parsed.variant(a.variant).map(|v| v.name))
+                .collect();
+            for l in got.iter().filter(|l| l["decision"] == "detect") {
+                let ran = l["variants"].as_array().expect("variants");
+                assert_eq!(ran.len(), 1, "{budget} ms, frame {}: {ran:?}", l["frame"]);
+                assert!(
+                    named.contains(ran[0].as_str().expect("variant name")),
+                    "{budget} ms, frame {}: {ran:?} is not in the table ({named:?})",
+                    l["frame"]
+                );
+            }
+            let last = got.last().and_then(|l| l["frame"].as_u64()).expect("frame");
+            for gap in detected
+                .windows(2)
+                .map(|d| d[1] - d[0])
+                .chain([last + 1 - detected[detected.len() - 1]])
+            {
+                assert!(
+                    gap <= most,
+                    "{budget} ms, window {window}: a gap of {gap} frames, periods {periods:?}"
+                );
+            }
+            eprintln!(
+                "budget {budget} ms, keeper window {window}: periods {periods:?}, {} of {} frames detected, {} postponed",
+                detected.len(),
+                got.len(),
+                summary.postponed
+            );
+            if window == "0" {
+                assert_eq!(summary.postponed, 0);
+                // every frame when the table says every frame; some frames only
+                // tracked when no action detects every frame
+                let shortest = *periods.first().expect("a table has actions");
+                if longest == 1 {
+                    assert_eq!(detected.len(), got.len(), "{budget} ms");
+                }
+                if shortest > 1 {
+                    assert!(
+                        detected.len() < got.len(),
+                        "{budget} ms: periods {periods:?}"
+                    );
+                }
+            }
+        }
+    }
+    let config = tmp.join("pilot.toml");
+    let (frames, log) = (rec.join("frames/v0000"), rec.join("logs/flight_0.csv"));
+    let args = frugal_pilot::Args::parse_from([
+        "frugal-pilot",
+        "--input",
+        p(&frames),
+        "--every-frame",
+        "--odometry",
+        p(&log),
+        "--config",
+        p(&config),
+        "--json",
+        "none",
+        "--bundle",
+        p(bundle),
+        "--budget-ms",
+        "1234.5",
+    ]);
+    let err = frugal_pilot::run(&args, &AtomicBool::new(false), |l| eprintln!("{l}"))
+        .expect_err("no such budget table")
+        .to_string();
+    assert!(err.contains("1234.5"), "{err}");
+    for b in budgets {
+        assert!(err.contains(&format!("{b} ms")), "{err}");
+    }
 }
