@@ -32,6 +32,16 @@ fn record(tmp: &Path, rec: &Path, perception: &[&str]) {
 /// Run the pilot over the recording's frames, every frame, on its flight log, with a
 /// 160×90 camera and `perception` arguments; its JSON lines go to `json`.
 fn pilot(tmp: &Path, rec: &Path, json: &Path, perception: &[&str]) -> frugal_pilot::Summary {
+    try_pilot(tmp, rec, p(json), perception).expect("pilot")
+}
+
+/// [`pilot`], JSON lines to `json` (a path or `none`), its error kept.
+fn try_pilot(
+    tmp: &Path,
+    rec: &Path,
+    json: &str,
+    perception: &[&str],
+) -> Result<frugal_pilot::Summary, frugal_pilot::PilotError> {
     let config = tmp.join("pilot.toml");
     std::fs::write(&config, "[camera]\nwidth = 160\nheight = 90\n").expect("config");
     let (frames, log) = (rec.join("frames/v0000"), rec.join("logs/flight_0.csv"));
@@ -45,11 +55,11 @@ fn pilot(tmp: &Path, rec: &Path, json: &Path, perception: &[&str]) -> frugal_pil
         "--config",
         p(&config),
         "--json",
-        p(json),
+        json,
     ];
     args.extend_from_slice(perception);
     let args = frugal_pilot::Args::parse_from(args);
-    frugal_pilot::run(&args, &AtomicBool::new(false), |l| eprintln!("{l}")).expect("pilot")
+    frugal_pilot::run(&args, &AtomicBool::new(false), |l| eprintln!("{l}"))
 }
 
 /// The simulator's commands, from the recording's flight log.
@@ -284,27 +294,14 @@ fn flies_the_budget_tables(tmp: &Path, rec: &Path, bundle: &Path) {
             }
         }
     }
-    let config = tmp.join("pilot.toml");
-    let (frames, log) = (rec.join("frames/v0000"), rec.join("logs/flight_0.csv"));
-    let args = frugal_pilot::Args::parse_from([
-        "frugal-pilot",
-        "--input",
-        p(&frames),
-        "--every-frame",
-        "--odometry",
-        p(&log),
-        "--config",
-        p(&config),
-        "--json",
+    let err = try_pilot(
+        tmp,
+        rec,
         "none",
-        "--bundle",
-        p(bundle),
-        "--budget-ms",
-        "1234.5",
-    ]);
-    let err = frugal_pilot::run(&args, &AtomicBool::new(false), |l| eprintln!("{l}"))
-        .expect_err("no such budget table")
-        .to_string();
+        &["--bundle", p(bundle), "--budget-ms", "1234.5"],
+    )
+    .expect_err("no such budget table")
+    .to_string();
     assert!(err.contains("1234.5"), "{err}");
     for b in budgets {
         assert!(err.contains(&format!("{b} ms")), "{err}");

@@ -357,10 +357,26 @@ pub struct BudgetRun {
     pub queried: Vec<u32>,
 }
 
-/// Stream `strategy` under budget `k` of `pol` over `video`. `bundle` holds the
-/// budget tables (for [`BudgetStrategy::Budget`]). [`BudgetStrategy::Hindsight`] is
-/// chosen over a set of videos, not streamed on one: [`stream_all`] makes it, and here
-/// it is an error.
+/// What [`stream_strategy`] streams: a strategy, or one fixed (variant, every `N`)
+/// action with the tracker (as static + tracker runs its own).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Plan {
+    /// A strategy under the budget.
+    Strategy(BudgetStrategy),
+    /// This fixed action, with the tracker.
+    Fixed(usize),
+}
+
+impl From<BudgetStrategy> for Plan {
+    fn from(s: BudgetStrategy) -> Self {
+        Plan::Strategy(s)
+    }
+}
+
+/// Stream `plan` (a strategy, or a fixed action) under budget `k` of `pol` over
+/// `video`. `bundle` holds the budget tables (for [`BudgetStrategy::Budget`]).
+/// [`BudgetStrategy::Hindsight`] is chosen over a set of videos, not streamed on one:
+/// [`stream_all`] makes it, and here it is an error.
 #[allow(clippy::too_many_arguments)]
 pub fn stream_strategy(
     log: &ReplayLog,
@@ -370,47 +386,12 @@ pub fn stream_strategy(
     pol: &BudgetPolicies,
     k: usize,
     bundle: &[u8],
-    strategy: BudgetStrategy,
+    plan: impl Into<Plan>,
     iou: f32,
     clock_run: u32,
     cache: &VideoCache,
 ) -> Result<BudgetRun> {
-    stream_plan(
-        log,
-        video,
-        frames,
-        cost,
-        pol,
-        k,
-        bundle,
-        Plan::Strategy(strategy),
-        iou,
-        clock_run,
-        cache,
-    )
-}
-
-/// What [`stream_plan`] streams: a strategy, or one fixed action with the tracker.
-#[derive(Clone, Copy)]
-enum Plan {
-    Strategy(BudgetStrategy),
-    Fixed(usize),
-}
-
-#[allow(clippy::too_many_arguments)]
-fn stream_plan(
-    log: &ReplayLog,
-    video: &VideoLog,
-    frames: &dyn Frames,
-    cost: TrackerCost,
-    pol: &BudgetPolicies,
-    k: usize,
-    bundle: &[u8],
-    plan: Plan,
-    iou: f32,
-    clock_run: u32,
-    cache: &VideoCache,
-) -> Result<BudgetRun> {
+    let plan = plan.into();
     let cfg = &pol.config;
     // clock run 0 charges the measured times; the others jitter them
     let mut jitter = rand_chacha::ChaCha8Rng::seed_from_u64(
@@ -602,7 +583,7 @@ pub fn stream_all(
             let stream = |plan: Plan, k: usize| {
                 (0..pol.config.clock_runs)
                     .map(|c| {
-                        stream_plan(log, v, &cached, cost, pol, k, bundle, plan, iou, c, &cache)
+                        stream_strategy(log, v, &cached, cost, pol, k, bundle, plan, iou, c, &cache)
                     })
                     .collect::<Result<Vec<_>>>()
             };
