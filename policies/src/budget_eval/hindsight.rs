@@ -72,6 +72,19 @@ pub(super) fn choose(
     choice
 }
 
+/// [`choose`], and the figures of the choice.
+pub(super) fn bound(
+    classes: usize,
+    tallies: &[Vec<Tally>],
+    allowed: &[usize],
+    start: usize,
+    budget: f64,
+) -> (Vec<usize>, Figures) {
+    let choice = choose(classes, tallies, allowed, start, budget);
+    let f = figures(classes, tallies, &choice);
+    (choice, f)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

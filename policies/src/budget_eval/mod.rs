@@ -639,7 +639,7 @@ pub fn stream_all(
                 .position(|&a| a == pol.static_tracker(k))
                 .or_else(|| allowed.first().copied())
                 .unwrap_or(0);
-            hindsight::choose(log.classes, &tallies, &allowed, start, b)
+            hindsight::bound(log.classes, &tallies, &allowed, start, b).0
         })
         .collect();
     Ok(combos

@@ -823,6 +823,15 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
         assert!(t.tables > allowed.len(), "{t:?}");
         assert!(t.sap50 >= t.learnt_sap50 - 1e-12, "{t:?}");
         assert!(t.sap50 >= t.best_fixed_sap50 - 1e-12, "{t:?}");
+        // the hindsight bound starts from the best fixed schedule and never loses to it
+        // while that keeps the budget
+        if t.best_fixed_ms_per_frame <= pol.config.budgets_ms[k] + 1e-9 {
+            assert!(t.hindsight_sap50 >= t.best_fixed_sap50 - 1e-12, "{t:?}");
+            assert!(
+                t.hindsight_ms_per_frame <= pol.config.budgets_ms[k] + 1e-9,
+                "{t:?}"
+            );
+        }
         // static + tracker keeps the budget on the clock, whatever its segment cost
         assert!(choices.contains(&usize::from(t.best_fixed)), "{t:?}");
         assert!(
