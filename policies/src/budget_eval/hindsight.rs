@@ -52,9 +52,10 @@ pub(super) fn choose(
                 if j == choice[i] || j >= tallies[i].len() {
                     continue;
                 }
-                let mut cand = choice.clone();
-                cand[i] = j;
-                let f = figures(classes, tallies, &cand);
+                let keep = choice[i];
+                choice[i] = j;
+                let f = figures(classes, tallies, &choice);
+                choice[i] = keep;
                 if better_start(&f, best.as_ref().map_or(&cur, |b| &b.1), budget) {
                     best = Some((j, f));
                 }

@@ -570,11 +570,23 @@ pub fn stream_all(
         .collect();
     let alike = first_alike(pol, &combos);
     let fixed = hindsight_actions(pol);
+    // per fixed action, the (budget, strategy) pair whose runs are its own, if any:
+    // static + tracker's schedule under some budget
+    let streamed: Vec<Option<usize>> = {
+        let behaviours: Vec<Behaviour> = combos.iter().map(|&(k, s)| pol.behaviour(k, s)).collect();
+        fixed
+            .iter()
+            .map(|&a| {
+                let own = Behaviour::Fixed(BudgetStrategy::StaticTracker, a);
+                behaviours.iter().position(|b| *b == own)
+            })
+            .collect()
+    };
     let fps = pol.config.fps;
     let forecast = pol.config.forecaster();
     // per video: per (budget, strategy), its clock runs (none for the hindsight bound,
-    // chosen below); per fixed action, its clock runs and their tally
-    type PerVideo = (Vec<Vec<BudgetRun>>, Vec<(Vec<BudgetRun>, Tally)>);
+    // chosen below); per fixed action, its clock runs, and their tally
+    type PerVideo = (Vec<Vec<BudgetRun>>, Vec<Vec<BudgetRun>>, Vec<Tally>);
     let per_video: Vec<PerVideo> = videos
         .par_iter()
         .map(|v| {
@@ -602,13 +614,10 @@ pub fn stream_all(
             }
             let arr = v.arrivals_ms(fps);
             let mut fixed_runs = Vec::with_capacity(fixed.len());
-            for &a in &fixed {
-                // static + tracker's schedule under some budget has streamed already
-                let done = combos.iter().zip(&out).find(|((k, s), _)| {
-                    pol.behaviour(*k, *s) == Behaviour::Fixed(BudgetStrategy::StaticTracker, a)
-                });
-                let runs = match done {
-                    Some((_, runs)) => runs.clone(),
+            let mut tallies = Vec::with_capacity(fixed.len());
+            for (&a, done) in fixed.iter().zip(&streamed) {
+                let runs = match *done {
+                    Some(i) => out[i].clone(),
                     None => stream(Plan::Fixed(a), 0)?,
                 };
                 let mut tally = Tally::default();
@@ -616,16 +625,17 @@ pub fn stream_all(
                     tally.add(&Tally::of(log.classes, v, &arr, r, forecast));
                 }
                 progress();
-                fixed_runs.push((runs, tally));
+                fixed_runs.push(runs);
+                tallies.push(tally);
             }
-            Ok((out, fixed_runs))
+            Ok((out, fixed_runs, tallies))
         })
         .collect::<Result<_>>()?;
     // the hindsight bound, per budget: the runs of each video's chosen schedule
-    let tallies: Vec<Vec<Tally>> = per_video
-        .iter()
-        .map(|(_, f)| f.iter().map(|(_, t)| t.clone()).collect())
-        .collect();
+    let (per_video, tallies): (Vec<_>, Vec<Vec<Tally>>) = per_video
+        .into_iter()
+        .map(|(out, fixed_runs, t)| ((out, fixed_runs), t))
+        .unzip();
     let hindsight: Vec<Vec<usize>> = (0..pol.config.budgets_ms.len())
         .map(|k| {
             let b = pol.config.budgets_ms[k];
@@ -650,9 +660,7 @@ pub fn stream_all(
                 BudgetStrategy::Hindsight => per_video
                     .iter()
                     .zip(&hindsight[k])
-                    .flat_map(|((_, f), &j)| {
-                        f.get(j).into_iter().flat_map(|(r, _)| r.iter().cloned())
-                    })
+                    .flat_map(|((_, f), &j)| f.get(j).into_iter().flatten().cloned())
                     .collect(),
                 _ => per_video
                     .iter()
