@@ -169,6 +169,9 @@ pub struct BundlePerception {
     last_run: Vec<usize>,
     /// The budget table flown ([`BundlePerception::with_budget`]), in device ms.
     budget_ms: Option<f32>,
+    /// Device ms per measured ms, what the budget keeper is debited
+    /// ([`BundlePerception::with_debit_scale`]; 1 on the drone).
+    debit_scale: f32,
 }
 
 impl BundlePerception {
@@ -214,6 +217,7 @@ impl BundlePerception {
             detected_us: 0,
             last_run: Vec::new(),
             budget_ms: None,
+            debit_scale: 1.0,
         })
     }
 
@@ -261,6 +265,18 @@ impl BundlePerception {
     /// `None` with the paper's controller.
     pub fn budget_ms(&self) -> Option<f32> {
         self.budget_ms
+    }
+
+    /// Debit the budget keeper `scale` device ms per measured ms, for a machine that
+    /// stands in for the device (the simulator's device profile, whose slowdown scales
+    /// every compute time). On the drone, the measured time is the device's: 1, the
+    /// default. Fails unless `scale` is positive and finite.
+    pub fn with_debit_scale(mut self, scale: f32) -> Result<Self, PerceptionError> {
+        if !(scale > 0.0 && scale.is_finite()) {
+            return Err(format!("the keeper's debit scale must be positive, got {scale}").into());
+        }
+        self.debit_scale = scale;
+        Ok(self)
     }
 
     /// Periodic detections the budget keeper has postponed so far (0 without one).
@@ -358,7 +374,8 @@ impl BundlePerception {
             .collect();
         let elapsed = started.elapsed();
         // the budget keeper's debit (a pilot over the controller ignores it)
-        self.pilot.spent((elapsed.as_secs_f64() * 1e3) as f32);
+        self.pilot
+            .spent((elapsed.as_secs_f64() * 1e3) as f32 * self.debit_scale);
         let us = u64::try_from(elapsed.as_micros()).unwrap_or(u64::MAX);
         if decision == Decision::Track {
             self.tracked_frames += 1;
@@ -392,7 +409,7 @@ impl BundlePerception {
         )?;
         detections.retain(|d| d.score >= t_c);
         let compute_ms = started.elapsed().as_secs_f64() * 1e3;
-        self.pilot.spent(compute_ms as f32);
+        self.pilot.spent(compute_ms as f32 * self.debit_scale);
         Ok(Percept {
             detections,
             compute_ms,

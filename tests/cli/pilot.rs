@@ -198,7 +198,8 @@ fn through_a_real_bundle_the_pilot_perceives_and_acts_as_the_simulator_frame_by_
         got.len(),
         summary.commands
     );
-    flies_the_budget_tables(tmp.path(), &rec, &bundle);
+    let budgets = flies_the_budget_tables(tmp.path(), &rec, &bundle);
+    flies_the_budget_tables_in_the_maze(tmp.path(), &bundle, &budgets);
 }
 
 /// `--budget-ms` flies each budget table the bundle ships with the budget scheduler:
@@ -207,7 +208,7 @@ fn through_a_real_bundle_the_pilot_perceives_and_acts_as_the_simulator_frame_by_
 /// every action's period is 1 and some are only tracked when none is; with the keeper, a
 /// periodic detection waits at most one more period. A budget the bundle does not hold
 /// is refused, naming those it does.
-fn flies_the_budget_tables(tmp: &Path, rec: &Path, bundle: &Path) {
+fn flies_the_budget_tables(tmp: &Path, rec: &Path, bundle: &Path) -> Vec<f32> {
     let bytes = std::fs::read(bundle.join(frugal_nav::BUNDLE_FILE)).expect("bundle file");
     let parsed = frugal_runtime::Bundle::parse(&bytes).expect("bundle parses");
     let tables = parsed.schedules().expect("the bundle ships budget tables");
@@ -303,7 +304,105 @@ fn flies_the_budget_tables(tmp: &Path, rec: &Path, bundle: &Path) {
     .expect_err("no such budget table")
     .to_string();
     assert!(err.contains("1234.5"), "{err}");
-    for b in budgets {
+    for b in &budgets {
         assert!(err.contains(&format!("{b} ms")), "{err}");
     }
+    budgets
+}
+
+/// `frugal fly --budget-ms` flies each budget table in the maze with the budget
+/// scheduler and its keeper (the simulator's own perception, as `frugal-pilot
+/// --budget-ms` on the drone): the flight names the table, the first frame detects,
+/// each detection frame runs one variant, and processed frames between detections are
+/// at most twice the table's longest period (the keeper postpones a periodic detection
+/// by at most one period; frames the camera took while perception was busy count
+/// towards the period, so processed gaps are no longer). It reports the postponed
+/// detections. A budget the bundle does not hold, or one without the adaptive runtime,
+/// is refused.
+fn flies_the_budget_tables_in_the_maze(tmp: &Path, bundle: &Path, budgets: &[f32]) {
+    let bytes = std::fs::read(bundle.join(frugal_nav::BUNDLE_FILE)).expect("bundle file");
+    let parsed = frugal_runtime::Bundle::parse(&bytes).expect("bundle parses");
+    let tables = parsed.schedules().expect("the bundle ships budget tables");
+    for (k, budget) in budgets.iter().enumerate() {
+        let longest = (0..tables.state_count())
+            .filter_map(|s| tables.action(k, s))
+            .map(|a| u64::from(a.period))
+            .max()
+            .expect("a table has actions");
+        let rec = tmp.join(format!("maze-rec-{k}"));
+        let b = budget.to_string();
+        record(
+            tmp,
+            &rec,
+            &[
+                "--perception",
+                "adaptive",
+                "--bundle",
+                p(bundle),
+                "--threads",
+                "1",
+                "--time-limit",
+                "30",
+                "--budget-ms",
+                &b,
+            ],
+        );
+        let flights = super::json(&tmp.join("fly/easy/flights.json"));
+        let flight = &flights[0];
+        let name = flight["perception"].as_str().expect("perception name");
+        assert!(name.ends_with(&format!("-budget-{budget}ms")), "{name}");
+        let counts: Vec<(String, u64)> =
+            serde_json::from_value(flight["perception_counts"].clone()).expect("counts");
+        assert!(
+            counts.iter().any(|(n, _)| n == "postponed detections"),
+            "{counts:?}"
+        );
+        let got = lines(&rec.join("logs/percepts_0.jsonl"));
+        assert!(got.len() > 10, "{} frames", got.len());
+        assert_eq!(got[0]["decision"], "detect");
+        let detected: Vec<usize> = got
+            .iter()
+            .enumerate()
+            .filter(|(_, l)| l["decision"] == "detect")
+            .map(|(i, _)| i)
+            .collect();
+        for gap in detected
+            .windows(2)
+            .map(|d| d[1] - d[0])
+            .chain([got.len() - detected[detected.len() - 1]])
+        {
+            assert!(
+                gap as u64 <= 2 * longest,
+                "{budget} ms: {gap} processed frames between detections, longest period {longest}"
+            );
+        }
+        eprintln!(
+            "maze, budget {budget} ms: {} of {} processed frames detected, counts {counts:?}",
+            detected.len(),
+            got.len()
+        );
+    }
+    let (easy, out) = (maze("easy.maze"), tmp.join("fly-err"));
+    let fly = |extra: &[&str]| {
+        let mut args = super::fly::small_flight(&["--maze", p(&easy), "--seeds", "1"]);
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["--out", p(&out)]);
+        frugal(&args)
+    };
+    let err = fly(&[
+        "--perception",
+        "adaptive",
+        "--bundle",
+        p(bundle),
+        "--budget-ms",
+        "1234.5",
+    ])
+    .expect_err("no such budget table");
+    assert!(err.contains("no budget table for 1234.5 ms"), "{err}");
+    assert!(err.contains(p(bundle)), "{err}");
+    let err = fly(&["--budget-ms", "33"]).expect_err("budget without the adaptive runtime");
+    assert!(
+        err.contains("--budget-ms") && err.contains("adaptive"),
+        "{err}"
+    );
 }

@@ -43,6 +43,19 @@ pub struct FlyArgs {
     /// good-enough, reported).
     #[arg(long, default_value = "optimal", value_parser = parse_carry)]
     pub carry: Carry,
+    /// Fly the bundle's budget table for this many device ms per frame (one of the
+    /// budgets `frugal policy budget` wrote into it) with the budget scheduler,
+    /// instead of the paper's controller. Needs `--perception adaptive`.
+    #[arg(long)]
+    pub budget_ms: Option<f32>,
+    /// With `--budget-ms`: the budget keeper's window, frames (0: no keeper). The
+    /// keeper is debited each frame's compute times the device's slowdown.
+    #[arg(long, default_value_t = 30)]
+    pub keep_window: u32,
+    /// The camera's frame rate: perception takes at most one frame per camera period
+    /// (`NavConfig::camera_fps`).
+    #[arg(long, default_value_t = 60.0)]
+    pub camera_fps: f64,
     /// ONNX Runtime intra-op threads for detector-based perception.
     #[arg(long, default_value_t = 1)]
     pub threads: usize,
@@ -110,7 +123,7 @@ pub enum PerceptionKind {
     Adaptive,
 }
 
-fn perception(args: &FlyArgs) -> anyhow::Result<Box<dyn Perception>> {
+fn perception(args: &FlyArgs, config: &FlightConfig) -> anyhow::Result<Box<dyn Perception>> {
     Ok(match args.perception {
         PerceptionKind::GroundTruth => Box::new(GroundTruthPerception {
             compute_ms: args.gt_compute_ms,
@@ -130,11 +143,20 @@ fn perception(args: &FlyArgs) -> anyhow::Result<Box<dyn Perception>> {
                 .bundle
                 .as_ref()
                 .context("--perception adaptive needs --bundle DIR (from `frugal bundle write`)")?;
-            Box::new(
-                frugal_sim::AdaptivePerception::open(dir, args.threads)
-                    .map_err(|e| anyhow::anyhow!("{e}"))?
-                    .with_carry(args.carry),
-            )
+            let mut p = frugal_sim::AdaptivePerception::open(dir, args.threads)
+                .map_err(|e| anyhow::anyhow!("{e}"))?
+                .with_carry(args.carry);
+            if let Some(b) = args.budget_ms {
+                p = p
+                    .with_budget(
+                        b,
+                        args.keep_window,
+                        config.device.slowdown,
+                        config.nav.camera_fps,
+                    )
+                    .map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
+            }
+            Box::new(p)
         }
     })
 }
@@ -162,6 +184,14 @@ pub fn run(args: FlyArgs) -> anyhow::Result<()> {
         "--carry other than optimal applies to the adaptive runtime's trackers (--perception adaptive)"
     );
     anyhow::ensure!(
+        args.budget_ms.is_none() || args.perception == PerceptionKind::Adaptive,
+        "--budget-ms flies a bundle's budget table (--perception adaptive --bundle DIR)"
+    );
+    anyhow::ensure!(
+        args.budget_ms.is_none() || args.carry == Carry::Optimal,
+        "--budget-ms flies the budget scheduler, whose trackers carry what it reports: --carry does not apply"
+    );
+    anyhow::ensure!(
         args.gt_compute_ms >= 0.0,
         "--gt-compute-ms must not be negative"
     );
@@ -175,6 +205,12 @@ pub fn run(args: FlyArgs) -> anyhow::Result<()> {
         ..FlightConfig::default()
     };
     config.nav.time_limit_s = args.time_limit;
+    anyhow::ensure!(
+        args.camera_fps > 0.0 && args.camera_fps.is_finite(),
+        "--camera-fps must be positive, got {}",
+        args.camera_fps
+    );
+    config.nav.camera_fps = args.camera_fps;
     let mazes = args
         .maze
         .iter()
@@ -242,7 +278,7 @@ fn fly_maze(
     bar.set_prefix(maze.name.clone());
     let mut results = Vec::new();
     for seed in args.seed..args.seed + args.seeds {
-        let mut p = perception(args)?;
+        let mut p = perception(args, config)?;
         let first = seed == args.seed;
         let mut gif = if first && args.gif {
             Some(GifRecorder::create(&dir.join("flight.gif"), 100)?)
