@@ -127,6 +127,11 @@ fn fly_reports_bad_maze_lines_and_unknown_devices() {
     ])
     .expect_err("carry without the adaptive runtime");
     assert!(e.contains("--carry") && e.contains("adaptive"), "{e}");
+    for fps in ["--camera-fps=0", "--camera-fps=-30", "--camera-fps=NaN"] {
+        let e = frugal(&["fly", "--maze", p(&maze("easy.maze")), fps, "--quiet"])
+            .expect_err("camera rate");
+        assert!(e.contains("--camera-fps must be positive"), "{fps}: {e}");
+    }
 }
 
 #[test]
