@@ -108,16 +108,6 @@ impl AdaptivePerception {
         })
     }
 
-    /// The budget table flown ([`BundlePerception::budget_ms`]).
-    pub fn budget_ms(&self) -> Option<f32> {
-        self.inner.budget_ms()
-    }
-
-    /// Periodic detections the budget keeper postponed ([`BundlePerception::postponed`]).
-    pub fn postponed(&self) -> u32 {
-        self.inner.postponed()
-    }
-
     /// The parsed bundle.
     pub fn bundle(&self) -> &Bundle<'static> {
         self.inner.bundle()
@@ -145,11 +135,15 @@ impl Perception for AdaptivePerception {
         self.inner.confirm(input.image).map(Some)
     }
 
-    /// [`BundlePerception::counts`].
+    /// [`BundlePerception::counts`], and flying a budget table, the detections its
+    /// keeper postponed.
     fn counts(&self) -> Vec<(String, u64)> {
         let mut c = self.inner.counts();
         if self.inner.budget_ms().is_some() {
-            c.push(("postponed detections".into(), u64::from(self.postponed())));
+            c.push((
+                "postponed detections".into(),
+                u64::from(self.inner.postponed()),
+            ));
         }
         c
     }

@@ -198,8 +198,8 @@ fn through_a_real_bundle_the_pilot_perceives_and_acts_as_the_simulator_frame_by_
         got.len(),
         summary.commands
     );
-    let budgets = flies_the_budget_tables(tmp.path(), &rec, &bundle);
-    flies_the_budget_tables_in_the_maze(tmp.path(), &bundle, &budgets);
+    let tables = flies_the_budget_tables(tmp.path(), &rec, &bundle);
+    flies_the_budget_tables_in_the_maze(tmp.path(), &bundle, &tables);
 }
 
 /// `--budget-ms` flies each budget table the bundle ships with the budget scheduler:
@@ -207,8 +207,8 @@ fn through_a_real_bundle_the_pilot_perceives_and_acts_as_the_simulator_frame_by_
 /// longest period apart (a lost track brings one forward), every frame detects when
 /// every action's period is 1 and some are only tracked when none is; with the keeper, a
 /// periodic detection waits at most one more period. A budget the bundle does not hold
-/// is refused, naming those it does.
-fn flies_the_budget_tables(tmp: &Path, rec: &Path, bundle: &Path) -> Vec<f32> {
+/// is refused, naming those it does. Returns each table's budget and longest period.
+fn flies_the_budget_tables(tmp: &Path, rec: &Path, bundle: &Path) -> Vec<(f32, u64)> {
     let bytes = std::fs::read(bundle.join(frugal_nav::BUNDLE_FILE)).expect("bundle file");
     let parsed = frugal_runtime::Bundle::parse(&bytes).expect("bundle parses");
     let tables = parsed.schedules().expect("the bundle ships budget tables");
@@ -216,12 +216,12 @@ fn flies_the_budget_tables(tmp: &Path, rec: &Path, bundle: &Path) -> Vec<f32> {
     let mut budgets = Vec::new();
     for k in 0..tables.budget_count() {
         let budget = tables.budget(k).expect("budget record").budget_ms;
-        budgets.push(budget);
         let periods: std::collections::BTreeSet<u32> = (0..tables.state_count())
             .filter_map(|s| tables.action(k, s))
             .map(|a| a.period)
             .collect();
         let longest = u64::from(*periods.last().expect("a table has actions"));
+        budgets.push((budget, longest));
         for (window, most) in [("0", longest), ("30", 2 * longest)] {
             let out = tmp.join(format!("budget-{k}-{window}.jsonl"));
             let b = budget.to_string();
@@ -304,7 +304,7 @@ fn flies_the_budget_tables(tmp: &Path, rec: &Path, bundle: &Path) -> Vec<f32> {
     .expect_err("no such budget table")
     .to_string();
     assert!(err.contains("1234.5"), "{err}");
-    for b in &budgets {
+    for (b, _) in &budgets {
         assert!(err.contains(&format!("{b} ms")), "{err}");
     }
     budgets
@@ -319,16 +319,8 @@ fn flies_the_budget_tables(tmp: &Path, rec: &Path, bundle: &Path) -> Vec<f32> {
 /// towards the period, so processed gaps are no longer). It reports the postponed
 /// detections. A budget the bundle does not hold, or one without the adaptive runtime,
 /// is refused.
-fn flies_the_budget_tables_in_the_maze(tmp: &Path, bundle: &Path, budgets: &[f32]) {
-    let bytes = std::fs::read(bundle.join(frugal_nav::BUNDLE_FILE)).expect("bundle file");
-    let parsed = frugal_runtime::Bundle::parse(&bytes).expect("bundle parses");
-    let tables = parsed.schedules().expect("the bundle ships budget tables");
-    for (k, budget) in budgets.iter().enumerate() {
-        let longest = (0..tables.state_count())
-            .filter_map(|s| tables.action(k, s))
-            .map(|a| u64::from(a.period))
-            .max()
-            .expect("a table has actions");
+fn flies_the_budget_tables_in_the_maze(tmp: &Path, bundle: &Path, tables: &[(f32, u64)]) {
+    for (k, &(budget, longest)) in tables.iter().enumerate() {
         let rec = tmp.join(format!("maze-rec-{k}"));
         let b = budget.to_string();
         record(

@@ -33,15 +33,16 @@ fn figures(classes: usize, tallies: &[Vec<Tally>], choice: &[usize]) -> Figures 
 }
 
 /// Per video, the index (into `tallies[video]`, one tally per fixed schedule, each
-/// pooled over the video's clock runs) of the schedule the bound runs under `budget`:
-/// the choice is among `allowed` indices, from `start` on every video.
-pub(super) fn choose(
+/// pooled over the video's clock runs) of the schedule the bound runs under `budget`,
+/// and the figures of that choice: the choice is among `allowed` indices, from `start`
+/// on every video.
+pub(super) fn bound(
     classes: usize,
     tallies: &[Vec<Tally>],
     allowed: &[usize],
     start: usize,
     budget: f64,
-) -> Vec<usize> {
+) -> (Vec<usize>, Figures) {
     let mut choice = vec![start; tallies.len()];
     let mut cur = figures(classes, tallies, &choice);
     for _ in 0..SWEEPS {
@@ -70,20 +71,7 @@ pub(super) fn choose(
             break;
         }
     }
-    choice
-}
-
-/// [`choose`], and the figures of the choice.
-pub(super) fn bound(
-    classes: usize,
-    tallies: &[Vec<Tally>],
-    allowed: &[usize],
-    start: usize,
-    budget: f64,
-) -> (Vec<usize>, Figures) {
-    let choice = choose(classes, tallies, allowed, start, budget);
-    let f = figures(classes, tallies, &choice);
-    (choice, f)
+    (choice, cur)
 }
 
 #[cfg(test)]
@@ -103,27 +91,27 @@ mod tests {
         let t = tallies();
         let start = figures(1, &t, &[0, 0]);
         // 2 ms per frame: one video of the two can run the dear schedule
-        let c = choose(1, &t, &[0, 1], 0, 2.0);
+        let c = bound(1, &t, &[0, 1], 0, 2.0).0;
         assert_eq!(c.iter().filter(|&&j| j == 1).count(), 1, "{c:?}");
         let f = figures(1, &t, &c);
         assert!(f.ms_per_frame <= 2.0 + 1e-12);
         assert!(f.sap50 > start.sap50, "{} vs {}", f.sap50, start.sap50);
         // 3 ms: both
-        assert_eq!(choose(1, &t, &[0, 1], 0, 3.0), vec![1, 1]);
+        assert_eq!(bound(1, &t, &[0, 1], 0, 3.0).0, vec![1, 1]);
         // 1 ms, or the dear schedule not allowed: the start
-        assert_eq!(choose(1, &t, &[0, 1], 0, 1.0), vec![0, 0]);
-        assert_eq!(choose(1, &t, &[0], 0, 3.0), vec![0, 0]);
+        assert_eq!(bound(1, &t, &[0, 1], 0, 1.0).0, vec![0, 0]);
+        assert_eq!(bound(1, &t, &[0], 0, 3.0).0, vec![0, 0]);
     }
 
     #[test]
     fn from_a_start_over_the_budget_the_bound_comes_down_to_it() {
         let t = tallies();
         // start dear everywhere (3 ms) under 2 ms: one video comes down to 1 ms
-        let c = choose(1, &t, &[0, 1], 1, 2.0);
+        let c = bound(1, &t, &[0, 1], 1, 2.0).0;
         assert!(figures(1, &t, &c).ms_per_frame <= 2.0 + 1e-12, "{c:?}");
         // nothing keeps 0.5 ms: the cheapest choice
-        assert_eq!(choose(1, &t, &[0, 1], 1, 0.5), vec![0, 0]);
+        assert_eq!(bound(1, &t, &[0, 1], 1, 0.5).0, vec![0, 0]);
         // no videos, nothing to choose
-        assert!(choose(1, &[], &[0, 1], 0, 2.0).is_empty());
+        assert!(bound(1, &[], &[0, 1], 0, 2.0).0.is_empty());
     }
 }

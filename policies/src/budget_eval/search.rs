@@ -376,11 +376,12 @@ pub fn search_tables(
         for (&a, name) in choices.iter().zip(names) {
             let table = vec![a as u16; states];
             let (runs, fig) = full(policy, &table)?;
-            let (fixed_runs, fixed_fig) = match bare.as_mut() {
-                Some(bare) => full(bare, &table)?,
-                None => (runs.clone(), fig.clone()),
+            let bare_full = match bare.as_mut() {
+                Some(bare) => Some(full(bare, &table)?),
+                None => None,
             };
-            for (t, rs) in tallies.iter_mut().zip(&fixed_runs) {
+            let (fixed_runs, fixed_fig) = bare_full.as_ref().map_or((&runs, &fig), |(r, f)| (r, f));
+            for (t, rs) in tallies.iter_mut().zip(fixed_runs) {
                 let mut pooled = Tally::default();
                 for r in rs {
                     pooled.add(&r.tally);
@@ -389,9 +390,9 @@ pub fn search_tables(
             }
             if best_fixed
                 .as_ref()
-                .is_none_or(|(_, f)| better_start(&fixed_fig, f, budget))
+                .is_none_or(|(_, f)| better_start(fixed_fig, f, budget))
             {
-                best_fixed = Some((a as u16, fixed_fig));
+                best_fixed = Some((a as u16, fixed_fig.clone()));
             }
             if better_start(&fig, &best.3, budget) {
                 best = (name, table, runs, fig);
