@@ -11,7 +11,7 @@
 use frugal_runtime::onnx::OrtDetector;
 use frugal_runtime::pilot::{Carry, Pilot};
 use frugal_runtime::track::Pyramid;
-use frugal_runtime::{Bundle, Decision, Detection, FrameRef, Trigger};
+use frugal_runtime::{Bundle, Decision, Detection, FrameClock, FrameRef, Trigger};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -172,6 +172,9 @@ pub struct BundlePerception {
     /// Device ms per measured ms, what the budget keeper is debited
     /// ([`BundlePerception::with_debit_scale`]; 1 on the drone).
     debit_scale: f32,
+    /// Flying a budget table of a bundle that records the tables' frame interval: the
+    /// clock that numbers the frames ([`BundlePerception::frame_number`]).
+    table_clock: Option<FrameClock>,
 }
 
 impl BundlePerception {
@@ -218,6 +221,7 @@ impl BundlePerception {
             last_run: Vec::new(),
             budget_ms: None,
             debit_scale: 1.0,
+            table_clock: None,
         })
     }
 
@@ -228,10 +232,11 @@ impl BundlePerception {
     /// keeper of that many frames holds the table to its budget on this device
     /// ([`Pilot::with_budget_keeper`]), debited every frame's measured compute,
     /// confirmations included: on the drone, the compute of the device the tables were
-    /// made for. [`BundlePerception::perceive`]'s `index` is then the frame's number in
-    /// the input, dropped frames counted, because periods and the keeper's credit count
-    /// arriving frames. Call it after [`BundlePerception::with_carry`], which flies the
-    /// controller again. Fails, naming the budgets the bundle holds, when none is
+    /// made for. [`BundlePerception::perceive`]'s `index` is then the frame's number
+    /// from [`BundlePerception::frame_number`]: on the tables' clock when the bundle
+    /// records it, else in the input, frames skipped while perception was busy
+    /// counted, because periods and the keeper's credit count arriving frames. Call it
+    /// after [`BundlePerception::with_carry`], which flies the controller again. Fails, naming the budgets the bundle holds, when none is
     /// `budget_ms`.
     pub fn with_budget(
         mut self,
@@ -257,6 +262,7 @@ impl BundlePerception {
             })?;
         self.pilot = Pilot::scheduled(self.bundle, k)?.with_budget_keeper(keep_window);
         self.budget_ms = Some(budgets[k]);
+        self.table_clock = schedules.frame_ms().and_then(FrameClock::new);
         self.label.push_str(&format!("-budget-{}ms", budgets[k]));
         Ok(self)
     }
@@ -265,6 +271,26 @@ impl BundlePerception {
     /// `None` with the paper's controller.
     pub fn budget_ms(&self) -> Option<f32> {
         self.budget_ms
+    }
+
+    /// The interval between the frames the budget table flown counts, ms, when the
+    /// bundle records it (format 6 on; [`frugal_runtime::Schedules::frame_ms`]).
+    pub fn table_frame_ms(&self) -> Option<f64> {
+        self.table_clock.map(|c| c.frame_ms())
+    }
+
+    /// The number [`BundlePerception::perceive`] is to be given for the frame captured
+    /// at `time_s`. Flying a budget table whose bundle records its frame interval: the
+    /// frame's number on the tables' clock ([`FrameClock`]), or `None` when the frame
+    /// falls on a frame already numbered (a camera faster than the rate the tables
+    /// were made at) and is to be dropped, not perceived. Otherwise (the paper's
+    /// controller, a bundle of format 5 or older): `fallback`, the caller's own
+    /// numbering.
+    pub fn frame_number(&mut self, time_s: f64, fallback: u64) -> Option<u64> {
+        match self.table_clock.as_mut() {
+            Some(c) => c.frame(time_s * 1e3).map(u64::from),
+            None => Some(fallback),
+        }
     }
 
     /// Debit the budget keeper `scale` device ms per measured ms, for a machine that
@@ -292,6 +318,7 @@ impl BundlePerception {
     pub fn with_carry(mut self, carry: Carry) -> Self {
         self.pilot = Pilot::new(self.bundle).with_carry(carry);
         self.budget_ms = None;
+        self.table_clock = None;
         let kind = match carry {
             Carry::Optimal => "",
             Carry::GoodEnough => "-carry-ge",

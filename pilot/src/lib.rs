@@ -168,6 +168,9 @@ pub struct Summary {
     pub budget_ms: Option<f32>,
     /// Periodic detections the budget keeper postponed.
     pub postponed: u32,
+    /// Frames not processed because they fell on a frame the budget table's clock had
+    /// already counted (an input faster than the rate the tables were made at).
+    pub table_drops: u64,
     /// Stopped by SIGINT or SIGTERM.
     pub interrupted: bool,
     /// Why the input ended early, when it failed.
@@ -196,8 +199,8 @@ impl Summary {
             .budget_ms
             .map(|b| {
                 format!(
-                    "; budget table {b} ms, {} periodic detections postponed",
-                    self.postponed
+                    "; budget table {b} ms, {} periodic detections postponed, {} frames faster than its clock skipped",
+                    self.postponed, self.table_drops
                 )
             })
             .unwrap_or_default()
@@ -243,17 +246,28 @@ enum Perception {
 }
 
 impl Perception {
-    /// Perceive processed frame `index`, number `frame` of the input.
+    /// The number to perceive the frame by, processed frame `index`, number `frame`
+    /// of the input captured at `time_s`: flying a budget table, its number on the
+    /// tables' clock, or the input's when the bundle does not say the tables' rate
+    /// (periods count arriving frames, dropped ones too), or `None`: the frame falls on
+    /// a frame that clock has counted, and is skipped; else `index`.
+    fn number(&mut self, index: u64, frame: u64, time_s: f64) -> Option<u64> {
+        match self {
+            Perception::Bundle(p) if p.budget_ms().is_some() => p.frame_number(time_s, frame),
+            _ => Some(index),
+        }
+    }
+
+    /// Perceive the frame numbered `number` ([`Perception::number`]), number `frame`
+    /// of the input.
     fn perceive(
         &mut self,
         image: FrameRef<'_>,
-        index: u64,
+        number: u64,
         frame: u64,
     ) -> Result<frugal_nav::Percept, frugal_nav::PerceptionError> {
         match self {
-            // a budget table's periods count arriving frames, dropped ones too
-            Perception::Bundle(p) if p.budget_ms().is_some() => p.perceive(image, frame),
-            Perception::Bundle(p) => p.perceive(image, index),
+            Perception::Bundle(p) => p.perceive(image, number),
             Perception::Replay(r) => Ok(r.percept(frame)),
         }
     }
@@ -414,13 +428,16 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
             summary.interrupted = stop.load(Ordering::Relaxed);
             break Ok(());
         };
-        let index = summary.frames;
+        let Some(number) = perception.number(summary.frames, frame.index, frame.time_s) else {
+            summary.table_drops += 1;
+            continue;
+        };
         let image = FrameRef {
             width: w,
             height: h,
             rgb: frame.image.as_raw(),
         };
-        let percept = match perception.perceive(image, index, frame.index) {
+        let percept = match perception.perceive(image, number, frame.index) {
             Ok(p) => p,
             Err(e) => {
                 break Err(PilotError::Perception {
@@ -587,7 +604,7 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
                     b
                 })
                 .collect();
-            let line = json!({
+            let mut line = json!({
                 "frame": frame.index,
                 "time_s": frame.time_s,
                 "decision": if percept.tracked { "track" } else { "detect" },
@@ -603,6 +620,12 @@ pub fn run(args: &Args, stop: &AtomicBool, report: fn(&str)) -> Result<Summary, 
                 "compute_ms": compute_ms,
                 "latency_ms": latency_ms,
             });
+            if let Perception::Bundle(p) = &perception
+                && p.budget_ms().is_some()
+            {
+                // the frame's number on the budget tables' clock, which periods count
+                line["table_frame"] = json!(number);
+            }
             if let Err(e) = writeln!(out, "{line}") {
                 break Err(PilotError::Output {
                     path: args.json.clone(),

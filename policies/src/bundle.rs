@@ -373,9 +373,13 @@ pub fn inspect(path: &Path) -> Result<String> {
             .filter_map(|i| sch.period(i))
             .map(|p| p.to_string())
             .collect();
+        let clock = sch.frame_ms().map_or_else(
+            || "frames of the camera (format 5 or older: the tables' rate is not recorded)".into(),
+            |ms| format!("frames of {ms:.2} ms ({:.1} fps)", 1e3 / ms),
+        );
         let _ = writeln!(
             s,
-            "schedules: {} budget tables, detect every {} frames",
+            "schedules: {} budget tables, detect every {} frames; periods and budgets count {clock}",
             sch.budget_count(),
             periods.join(" / ")
         );

@@ -101,6 +101,7 @@ fn scheduled_bundle_bytes() -> Vec<u8> {
                 variant: 0,
                 period: 1,
             },
+            frame_ms: 1e3 / 30.0,
             budgets,
         })
         .finish()

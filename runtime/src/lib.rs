@@ -79,7 +79,7 @@ pub use controller::{Access, Controller, Decision, Observation, TrackStatus, Tri
 pub use forecast::{ForecastParams, Forecaster};
 pub use geom::{BBox, ClassId, Detection, Detector, FrameRef, VariantId};
 pub use schedule::{
-    BudgetInfo, BudgetKeeper, Content, ContentEdges, ScheduleAction, ScheduleError, Scheduler,
-    TrackState,
+    BudgetInfo, BudgetKeeper, Content, ContentEdges, FrameClock, ScheduleAction, ScheduleError,
+    Scheduler, TrackState,
 };
 pub use track::{Tracker, TrackerParams};

@@ -120,6 +120,74 @@ pub struct Scheduler<'a> {
     keeper: Option<BudgetKeeper>,
 }
 
+/// Numbers a camera's frames on the clock a bundle's budget tables count
+/// ([`Schedules::frame_ms`]), by their capture times: the frame captured `t` ms after
+/// the first is frame `⌊t / F + 1/4⌋` of interval `F` (a frame up to a quarter interval
+/// early is on time). Frames the camera took while perception was busy are counted, as
+/// the tables' periods and budgets count them. A frame that falls on a frame already
+/// numbered (a camera faster than the tables' rate), or that was captured before the
+/// last one, gets no number: the caller drops it, so a 60 fps camera flies a table made
+/// at 30 fps every other frame, as the table was made, instead of detecting twice as
+/// often and spending twice its budget. `Copy`, allocation-free, never panics.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameClock {
+    frame_ms: f64,
+    /// Capture time of frame 0, ms.
+    start_ms: Option<f64>,
+    /// The last number given.
+    last: u32,
+}
+
+impl FrameClock {
+    /// A clock of `frame_ms` per frame; `None` unless it is finite and positive.
+    pub fn new(frame_ms: f32) -> Option<Self> {
+        (frame_ms.is_finite() && frame_ms > 0.0).then_some(Self {
+            frame_ms: frame_ms as f64,
+            start_ms: None,
+            last: 0,
+        })
+    }
+
+    /// The interval between the frames it numbers, ms.
+    pub const fn frame_ms(&self) -> f64 {
+        self.frame_ms
+    }
+
+    /// The number of the frame captured at `time_ms` (any origin, the same for every
+    /// frame): 0 for the first frame, then strictly ascending; `None` when the frame
+    /// is to be dropped (its number is taken, it was captured before the last frame
+    /// numbered, or its time is not finite). The first frame's number is 0 whatever
+    /// its time, once that time is finite.
+    pub fn frame(&mut self, time_ms: f64) -> Option<u32> {
+        let n = self.peek(time_ms)?;
+        if self.start_ms.is_none() {
+            self.start_ms = Some(time_ms);
+        }
+        self.last = n;
+        Some(n)
+    }
+
+    /// What [`FrameClock::frame`] would answer for a frame captured at `time_ms`,
+    /// without numbering it.
+    pub fn peek(&self, time_ms: f64) -> Option<u32> {
+        if !time_ms.is_finite() {
+            return None;
+        }
+        let Some(start) = self.start_ms else {
+            return Some(0);
+        };
+        // the cast saturates: a time before the first frame's is 0 (taken), one beyond
+        // u32 frames the last number; for the rest it is the floor
+        let n = ((time_ms - start) / self.frame_ms + 0.25) as u32;
+        (n > self.last).then_some(n)
+    }
+
+    /// The last number given (0 before the first frame).
+    pub const fn last(&self) -> u32 {
+        self.last
+    }
+}
+
 /// Holds the current budget table to its budget on the device it runs on: a token
 /// bucket of device milliseconds, empty at the start. Every frame that arrives credits
 /// one frame's budget (frames skipped while perception was busy too), up to `window`

@@ -1,6 +1,7 @@
 //! Proof that the per-frame path allocates nothing: a counting global allocator around
 //! 10,000 frames of bundle parsing, controller decisions, pyramid builds and tracking,
-//! and 10,000 frames each of scheduler decisions and of the scheduled pilot.
+//! and 10,000 frames each of scheduler decisions (numbered by the tables' frame clock)
+//! and of the scheduled pilot.
 #![allow(unsafe_code)] // a global allocator needs `unsafe impl GlobalAlloc`
 
 use frugal_runtime::bundle::write::{
@@ -12,8 +13,8 @@ use frugal_runtime::schedule::{CONTENT_STATES, largest_box};
 use frugal_runtime::synth::{ClipSpec, make_clip};
 use frugal_runtime::track::{GrayImage, Pyramid, Tracker, TrackerParams};
 use frugal_runtime::{
-    BudgetInfo, Bundle, ContentEdges, Controller, Decision, Detection, Observation, ScheduleAction,
-    Scheduler, TrackState, TrackStatus,
+    BudgetInfo, Bundle, ContentEdges, Controller, Decision, Detection, FrameClock, Observation,
+    ScheduleAction, Scheduler, TrackState, TrackStatus,
 };
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -108,6 +109,7 @@ fn scheduled_bundle() -> Vec<u8> {
                 variant: 1,
                 period: 1,
             },
+            frame_ms: 1e3 / 30.0,
             budgets,
         })
         .finish()
@@ -296,8 +298,14 @@ fn ten_thousand_scheduler_decisions_allocate_nothing() {
     let bundle = Bundle::parse(&bytes).unwrap();
     let mut s = Scheduler::new(bundle, 0).unwrap();
     s.keep_budget(30);
+    // a 60 fps camera on the tables' 30 fps clock: every other frame is numbered
+    let frame_ms = bundle.schedules().and_then(|x| x.frame_ms()).unwrap();
+    let mut clock = FrameClock::new(frame_ms).unwrap();
     let (mut detections, mut lost) = (0u32, 0u32);
-    for frame in 0..10_000u32 {
+    for camera_frame in 0..20_000u32 {
+        let Some(frame) = clock.frame(f64::from(camera_frame) * 1e3 / 60.0) else {
+            continue;
+        };
         if frame % 1_000 == 0 {
             s.set_budget((frame / 1_000) as usize % 3).unwrap();
         }

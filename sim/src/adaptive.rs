@@ -5,9 +5,9 @@
 //! code the drone-side program (`frugal-pilot`) runs.
 use crate::perception::{DetectorPerception, FrameInput, Percept, Perception, PerceptionError};
 use frugal_nav::BundlePerception;
-use frugal_runtime::Bundle;
 use frugal_runtime::onnx::OrtDetector;
 use frugal_runtime::pilot::Carry;
+use frugal_runtime::{Bundle, FrameClock};
 use std::path::Path;
 
 pub use frugal_nav::{BUNDLE_FILE, CNN_REPORT_SCORE};
@@ -32,32 +32,12 @@ pub fn static_onnx(
 /// The adaptive runtime in the loop.
 pub struct AdaptivePerception {
     inner: BundlePerception,
-    /// Flying a budget table: the camera's frames, counted by their capture times.
-    camera: Option<CameraClock>,
-}
-
-/// Numbers the frames perception takes as the camera's: a frame captured `dt` seconds
-/// after the last one taken is `round(dt × fps)` frames on (at least one), so the
-/// frames the camera took while perception was busy count, as on the drone.
-#[derive(Clone, Copy, Debug)]
-struct CameraClock {
-    fps: f64,
-    /// The camera frame and capture time of the last frame taken.
-    last: Option<(u64, f64)>,
-}
-
-impl CameraClock {
-    fn frame(&mut self, time_s: f64) -> u64 {
-        let n = match self.last {
-            None => 0,
-            Some((n, t)) => {
-                let taken = ((time_s - t) * self.fps).round();
-                n.saturating_add(if taken >= 1.0 { taken as u64 } else { 1 })
-            }
-        };
-        self.last = Some((n, time_s));
-        n
-    }
+    /// Flying a budget table: numbers the frames by their capture times on the
+    /// tables' clock (the bundle's frame interval, or the camera's for a bundle of
+    /// format 5 or older), so that frames taken while perception was busy count.
+    clock: Option<FrameClock>,
+    /// Camera frames dropped because they fell on a frame the clock had numbered.
+    dropped: u64,
 }
 
 impl AdaptivePerception {
@@ -65,7 +45,8 @@ impl AdaptivePerception {
     pub fn open(dir: &Path, threads: usize) -> Result<Self, PerceptionError> {
         BundlePerception::open(dir, threads).map(|inner| Self {
             inner,
-            camera: None,
+            clock: None,
+            dropped: 0,
         })
     }
 
@@ -73,19 +54,21 @@ impl AdaptivePerception {
     pub fn with_carry(self, carry: Carry) -> Self {
         Self {
             inner: self.inner.with_carry(carry),
-            camera: None,
+            clock: None,
+            dropped: 0,
         }
     }
 
     /// Fly the bundle's budget table for `budget_ms` device ms per frame
     /// ([`BundlePerception::with_budget`]), with a budget keeper of `keep_window` frames
     /// (0: none) debited every frame's compute × `slowdown` (the device profile's, as
-    /// the flight charges it). The table's periods and the keeper's credit count the
-    /// frames of the camera, at `camera_fps`, by their capture times, those it took
-    /// while perception was busy included, as on the drone. A table's periods and its
-    /// budget in ms per frame mean what they meant in the evaluation when the camera
-    /// runs at the frame rate the tables were made for (`[budget] fps`). Call it after
-    /// [`AdaptivePerception::with_carry`].
+    /// the flight charges it). The table's periods and the keeper's credit count frames
+    /// on the clock the tables were made on (the bundle's frame interval), by their
+    /// capture times, those the camera took while perception was busy included, as on
+    /// the drone; a camera faster than that clock has its extra frames dropped
+    /// ([`Perception::camera_wait_s`]). A bundle of format 5 or older does not say its
+    /// tables' rate: its periods count the camera's frames, at `camera_fps`. Call it
+    /// after [`AdaptivePerception::with_carry`].
     pub fn with_budget(
         self,
         budget_ms: f32,
@@ -96,15 +79,15 @@ impl AdaptivePerception {
         if !(camera_fps > 0.0 && camera_fps.is_finite()) {
             return Err(format!("camera frame rate must be positive, got {camera_fps}").into());
         }
+        let inner = self
+            .inner
+            .with_budget(budget_ms, keep_window)?
+            .with_debit_scale(slowdown as f32)?;
+        let frame_ms = inner.table_frame_ms().unwrap_or(1e3 / camera_fps);
         Ok(Self {
-            inner: self
-                .inner
-                .with_budget(budget_ms, keep_window)?
-                .with_debit_scale(slowdown as f32)?,
-            camera: Some(CameraClock {
-                fps: camera_fps,
-                last: None,
-            }),
+            inner,
+            clock: FrameClock::new(frame_ms as f32),
+            dropped: 0,
         })
     }
 
@@ -114,6 +97,19 @@ impl AdaptivePerception {
     }
 }
 
+/// Whole camera frames of `camera_dt_s` from `ready_s` to the first frame `clock`
+/// numbers (0: the frame at `ready_s`). A frame interval spans at most a few hundred
+/// camera frames; the bound only guards against a clock that takes nothing.
+fn frames_to_wait(clock: &FrameClock, ready_s: f64, camera_dt_s: f64) -> u32 {
+    (0..10_000u32)
+        .find(|&k| {
+            clock
+                .peek((ready_s + f64::from(k) * camera_dt_s) * 1e3)
+                .is_some()
+        })
+        .unwrap_or(0)
+}
+
 impl Perception for AdaptivePerception {
     fn name(&self) -> String {
         self.inner.name()
@@ -121,12 +117,26 @@ impl Perception for AdaptivePerception {
 
     fn perceive(&mut self, input: &FrameInput<'_>) -> Result<Percept, PerceptionError> {
         // with the paper's controller, the processed frame's number; flying a budget
-        // table, the camera frame's
-        let n = match self.camera.as_mut() {
-            Some(c) => c.frame(input.time_s),
-            None => input.index,
+        // table, the frame's on the tables' clock (the flight waits for a frame the
+        // clock takes: `camera_wait_s`; should one fall on the same number anyway, it
+        // is perceived as that frame again)
+        let n = match self.clock.as_mut() {
+            Some(c) => c.frame(input.time_s * 1e3).unwrap_or(c.last()),
+            None => u32::try_from(input.index).unwrap_or(u32::MAX),
         };
-        self.inner.perceive(input.image, n)
+        self.inner.perceive(input.image, u64::from(n))
+    }
+
+    /// Flying a budget table: the wait, in whole camera frames of `camera_dt_s`, from
+    /// `ready_s` to the first frame the tables' clock numbers; the frames in between
+    /// are dropped (a camera faster than the tables' rate).
+    fn camera_wait_s(&mut self, ready_s: f64, camera_dt_s: f64) -> f64 {
+        let Some(c) = self.clock.as_ref() else {
+            return 0.0;
+        };
+        let k = frames_to_wait(c, ready_s, camera_dt_s);
+        self.dropped += u64::from(k);
+        f64::from(k) * camera_dt_s
     }
 
     /// The bundle's reference variant (the most accurate) on this frame
@@ -144,6 +154,7 @@ impl Perception for AdaptivePerception {
                 "postponed detections".into(),
                 u64::from(self.inner.postponed()),
             ));
+            c.push(("dropped camera frames".into(), self.dropped));
         }
         c
     }
@@ -151,29 +162,29 @@ impl Perception for AdaptivePerception {
 
 #[cfg(test)]
 mod tests {
-    use super::CameraClock;
+    use super::*;
 
     #[test]
-    fn the_camera_clock_counts_the_frames_taken_while_perception_was_busy() {
-        let mut c = CameraClock {
-            fps: 60.0,
-            last: None,
-        };
-        // a frame every camera period, then one 4 periods on (3 taken while busy), then
-        // one 2.6 periods on (rounded), then one only 0.2 periods on (still the next)
-        let times = [0.5, 0.5 + 1.0 / 60.0, 0.5 + 5.0 / 60.0, 0.5 + 7.6 / 60.0];
-        let got: Vec<u64> = times.iter().map(|&t| c.frame(t)).collect();
-        assert_eq!(got, vec![0, 1, 5, 8]);
-        assert_eq!(c.frame(0.5 + 7.8 / 60.0), 9);
-        // float error in a whole number of periods does not skip or repeat a frame
-        let mut c = CameraClock {
-            fps: 30.0,
-            last: None,
-        };
-        let mut t = 0.0;
-        for k in 0..1000 {
-            assert_eq!(c.frame(t), k);
-            t += 1.0 / 30.0;
+    fn a_camera_faster_than_the_tables_waits_for_the_tables_next_frame() {
+        let cam = 1.0 / 60.0;
+        let mut c = FrameClock::new(1e3 / 30.0).unwrap();
+        assert_eq!(frames_to_wait(&c, 0.5, cam), 0);
+        assert_eq!(c.frame(500.0), Some(0));
+        // ready one camera frame on: that frame is table frame 0 again, the next is 1
+        assert_eq!(frames_to_wait(&c, 0.5 + cam, cam), 1);
+        assert_eq!(c.frame((0.5 + 2.0 * cam) * 1e3), Some(1));
+        // ready after 3.2 camera frames of compute: table frame 2 is already due
+        assert_eq!(frames_to_wait(&c, 0.5 + 5.2 * cam, cam), 0);
+        assert_eq!(c.frame((0.5 + 5.2 * cam) * 1e3), Some(2));
+        // a camera at the tables' rate, or slower, never waits
+        for fps in [30.0, 25.0] {
+            let mut c = FrameClock::new(1e3 / 30.0).unwrap();
+            let mut t = 0.0;
+            for k in 0..300 {
+                assert_eq!(frames_to_wait(&c, t, 1.0 / fps), 0, "{fps} fps, frame {k}");
+                assert!(c.frame(t * 1e3).is_some());
+                t += 1.0 / fps;
+            }
         }
     }
 }

@@ -45,6 +45,15 @@ pub trait Perception {
         Ok(None)
     }
 
+    /// How long the flight waits, from `ready_s` (when perception is free for the next
+    /// frame), for a camera frame of interval `camera_dt_s` this perception takes: a
+    /// whole number of camera frames, those in between dropped. 0 (the default): it
+    /// takes the frame at `ready_s`. The adaptive runtime flying a budget table drops
+    /// the frames of a camera faster than the tables' clock.
+    fn camera_wait_s(&mut self, _ready_s: f64, _camera_dt_s: f64) -> f64 {
+        0.0
+    }
+
     /// What it ran since it was made, by name (the adaptive runtime: detections by
     /// the controller's trigger and by variant); empty when there is nothing to tell.
     fn counts(&self) -> Vec<(String, u64)> {

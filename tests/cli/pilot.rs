@@ -241,12 +241,20 @@ fn flies_the_budget_tables(tmp: &Path, rec: &Path, bundle: &Path) -> Vec<(f32, u
             assert_eq!(summary.budget_ms, Some(budget));
             let got = lines(&out);
             assert!(!got.is_empty());
+            // periods count frames on the tables' clock, which the bundle records
             let detected: Vec<u64> = got
                 .iter()
                 .filter(|l| l["decision"] == "detect")
-                .map(|l| l["frame"].as_u64().expect("frame"))
+                .map(|l| l["table_frame"].as_u64().expect("table_frame"))
                 .collect();
-            assert_eq!(detected.first(), got[0]["frame"].as_u64().as_ref());
+            assert_eq!(detected.first(), got[0]["table_frame"].as_u64().as_ref());
+            assert_eq!(got[0]["table_frame"], 0);
+            // the clock numbers frames in order, none twice
+            let numbers: Vec<u64> = got
+                .iter()
+                .map(|l| l["table_frame"].as_u64().expect("table_frame"))
+                .collect();
+            assert!(numbers.windows(2).all(|w| w[0] < w[1]), "{numbers:?}");
             // one detection per detection frame, by a variant the table names
             let named: std::collections::BTreeSet<&str> = (0..tables.state_count())
                 .filter_map(|s| tables.action(k, s))
@@ -261,7 +269,10 @@ fn flies_the_budget_tables(tmp: &Path, rec: &Path, bundle: &Path) -> Vec<(f32, u
                     l["frame"]
                 );
             }
-            let last = got.last().and_then(|l| l["frame"].as_u64()).expect("frame");
+            let last = got
+                .last()
+                .and_then(|l| l["table_frame"].as_u64())
+                .expect("table_frame");
             for gap in detected
                 .windows(2)
                 .map(|d| d[1] - d[0])
@@ -348,6 +359,21 @@ fn flies_the_budget_tables_in_the_maze(tmp: &Path, bundle: &Path, tables: &[(f32
         assert!(
             counts.iter().any(|(n, _)| n == "postponed detections"),
             "{counts:?}"
+        );
+        // the 60 fps camera is flown on the tables' 30 fps clock: the frames between
+        // two of its frames are dropped, and no more frames are processed than it has
+        let dropped = counts
+            .iter()
+            .find(|(n, _)| n == "dropped camera frames")
+            .map(|c| c.1);
+        assert!(dropped.is_some_and(|d| d > 0), "{counts:?}");
+        let (frames, time_s) = (
+            flight["frames"].as_f64().expect("frames"),
+            flight["time_s"].as_f64().expect("time_s"),
+        );
+        assert!(
+            frames <= time_s * 30.0 + 1.0,
+            "{frames} frames in {time_s} s on a 30 fps clock"
         );
         let got = lines(&rec.join("logs/percepts_0.jsonl"));
         assert!(got.len() > 10, "{} frames", got.len());

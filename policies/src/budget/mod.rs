@@ -422,6 +422,12 @@ pub struct BudgetPolicies {
     /// their figures. `None` in policies made before it was kept.
     #[serde(default)]
     pub tracker_cost: Option<crate::scoring::TrackerCost>,
+    /// The interval between the frames the tables count, ms: the median interval of
+    /// the training videos' arrivals (`1000 / fps` for the synthetic videos). The
+    /// bundle records it, so that the drone numbers its camera's frames on this clock.
+    /// `None` in policies made before it was kept: `1000 / config.fps`.
+    #[serde(default)]
+    pub frame_ms: Option<f64>,
 }
 
 impl BudgetPolicies {
@@ -440,6 +446,7 @@ impl BudgetPolicies {
             edges: self.config.edges(),
             periods: self.config.periods.clone(),
             initial: self.schedule_action(usize::from(self.initial)),
+            frame_ms: self.frame_ms.unwrap_or(1e3 / self.config.fps) as f32,
             budgets: self
                 .policies
                 .iter()

@@ -25,6 +25,25 @@ struct Sample {
     next: usize,
 }
 
+/// The median interval between consecutive frames of `videos` as they arrive
+/// ([`VideoLog::arrivals_ms`]: their own times, else `fps`), ms: the clock the tables
+/// learnt on them count. `1000 / fps` when no video has two frames.
+fn frame_interval_ms(videos: &[&VideoLog], fps: f64) -> f64 {
+    let mut gaps: Vec<f64> = videos
+        .iter()
+        .flat_map(|v| {
+            let a = v.arrivals_ms(fps);
+            a.windows(2).map(|w| w[1] - w[0]).collect::<Vec<_>>()
+        })
+        .filter(|g| g.is_finite() && *g > 0.0)
+        .collect();
+    if gaps.is_empty() {
+        return 1e3 / fps;
+    }
+    gaps.sort_by(f64::total_cmp);
+    gaps[gaps.len() / 2]
+}
+
 /// Learn the budget policies from the log's training videos.
 pub fn train_budget(
     log: &ReplayLog,
@@ -140,6 +159,7 @@ pub fn train_budget(
         action_ms,
         variant_f1: variant_f1.iter().copied().map(mean).collect(),
         tracker_cost: Some(cost),
+        frame_ms: Some(frame_interval_ms(&train, cfg.fps)),
     };
     // the first detection reads the table at the state the scheduler starts in: the miss
     // bucket, the initial variant, nothing shown

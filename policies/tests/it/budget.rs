@@ -937,3 +937,31 @@ fn a_period_list_must_start_at_one_and_ascend() {
         );
     }
 }
+
+/// The bundle records the clock its tables count: 30 fps for videos without times of
+/// their own, the median frame interval of training videos that carry their times.
+#[test]
+fn the_bundle_records_the_frame_interval_the_tables_count() {
+    let (log, frames, pol) = trained();
+    let ms = pol.frame_ms.expect("recorded");
+    assert!((ms - 1e3 / 30.0).abs() < 1e-9, "{ms}");
+    let (_, bytes) = bundled(&log, &pol);
+    let b = frugal_runtime::Bundle::parse(&bytes).unwrap();
+    assert_eq!(b.schedules().unwrap().frame_ms(), Some((1e3 / 30.0) as f32));
+    // 25 fps video with its own times, one frame in ten half an interval late
+    let mut timed = log.clone();
+    for v in &mut timed.videos {
+        for (i, f) in v.frames.iter_mut().enumerate() {
+            f.time_s = Some(i as f64 / 25.0 + if i % 10 == 5 { 0.02 } else { 0.0 });
+        }
+    }
+    let pol25 = train_budget(&timed, &frames, COST, &config(), 0.5).unwrap();
+    let ms = pol25.frame_ms.expect("recorded");
+    assert!((ms - 40.0).abs() < 1e-6, "{ms}");
+    // a policy saved before the interval was kept exports 1000 / fps
+    let old = BudgetPolicies {
+        frame_ms: None,
+        ..pol
+    };
+    assert!((old.schedule_spec().frame_ms - 1e3 / 30.0).abs() < 1e-4);
+}

@@ -35,7 +35,7 @@
 //! | offset | size | type | field |
 //! |-------:|-----:|------|-------|
 //! | 0  | 4 | u32 | magic `0x4250_5246` — the bytes `"FRPB"`; the byte-swapped value (`"BPRF"`) means a big-endian writer: [`BundleError::WrongEndian`] |
-//! | 4  | 2 | u16 | format version, [`FORMAT_VERSION`] = 5 (the reader also takes 4 and [`MIN_FORMAT_VERSION`] = 3) |
+//! | 4  | 2 | u16 | format version, [`FORMAT_VERSION`] = 6 (the reader also takes 5, 4 and [`MIN_FORMAT_VERSION`] = 3) |
 //! | 6  | 2 | u16 | section count `n`, 1 ..= [`MAX_SECTIONS`] |
 //! | 8  | 4 | u32 | total file length in bytes (must equal the input length) |
 //! | 12 | 4 | u32 | CRC-32 (IEEE, as zlib) of the whole file with these 4 bytes taken as zero |
@@ -126,19 +126,21 @@
 //! | 16 | 8 | 2 × f32 | motion edges in pixels per frame, finite, `0 <= e0 <= e1` ([`ContentEdges::motion_px`]) |
 //! | 24 | 8 | 4 × u16 | periods in frames: the first `P` strictly ascending in 1 ..= 255, the rest 0 |
 //! | 32 | 2 | u16 | budget count `K`, 1 ..= [`MAX_BUDGETS`] = 8 |
-//! | 34 | 2 | u16 | initial action `< V · P`: version 5, its variant is the current variant before the first detection, which takes the table's action (its period is not used); version 4, run on the first frame |
-//! | 36 + 16 k | 4 | f32 | budget `k`: latency budget in ms, finite, `> 0` ([`BudgetInfo`]) |
-//! | 40 + 16 k | 4 | f32 | slowdown of the target versus the measuring machine, finite, `> 0` |
-//! | 44 + 16 k | 4 | f32 | expected latency per frame in ms, finite, `>= 0` |
-//! | 48 + 16 k | 4 | f32 | 95th percentile latency per frame in ms, finite, `>= 0` |
-//! | 36 + 16 K + 2 (k S + s) | 2 | u16 | budget `k`'s action for state `s`, `< V · P` |
+//! | 34 | 2 | u16 | initial action `< V · P`: version 5 on, its variant is the current variant before the first detection, which takes the table's action (its period is not used); version 4, run on the first frame |
+//! | 36 | 4 | f32 | version 6 on: the frame interval `F` in ms the tables count (periods, budgets per frame, motion per frame), finite, `> 0` ([`Schedules::frame_ms`]); absent before |
+//! | `H` + 16 k | 4 | f32 | budget `k`: latency budget in ms, finite, `> 0` ([`BudgetInfo`]) |
+//! | `H` + 4 + 16 k | 4 | f32 | slowdown of the target versus the measuring machine, finite, `> 0` |
+//! | `H` + 8 + 16 k | 4 | f32 | expected latency per frame in ms, finite, `>= 0` |
+//! | `H` + 12 + 16 k | 4 | f32 | 95th percentile latency per frame in ms, finite, `>= 0` |
+//! | `H` + 16 K + 2 (k S + s) | 2 | u16 | budget `k`'s action for state `s`, `< V · P` |
 //!
 //! `S = 4 · V · 27` is the number of states of a table; a state's index is
 //! [`crate::schedule::state_index`]: `(bucket · V + current variant) · 27 + content
 //! index`, the content index being `(size · 3 + motion) · 3 + count`
 //! ([`crate::schedule::Content::index`]). An action `a`
-//! encodes the variant `a / P` and the period index `a % P`. The section is exactly
-//! `36 + 16 K + 2 K S` bytes.
+//! encodes the variant `a / P` and the period index `a % P`. The header is `H` = 40
+//! bytes from version 6 on (36 before), and the section is exactly `H + 16 K + 2 K S`
+//! bytes.
 //!
 //! One file on purpose: the byte layout documented above and the zero-copy parser that
 //! checks every field of it are read side by side (the writer is `write.rs`).
@@ -158,8 +160,9 @@ use core::fmt;
 pub const MAGIC: u32 = 0x4250_5246;
 /// The format version the writer writes and the newest the reader understands (2 added
 /// the accesses per image, 3 the reference variant, 4 the schedules section, 5 the
-/// first detection read from the schedule table).
-pub const FORMAT_VERSION: u16 = 5;
+/// first detection read from the schedule table, 6 the frame interval the schedules
+/// count).
+pub const FORMAT_VERSION: u16 = 6;
 /// The oldest format version the reader understands.
 pub const MIN_FORMAT_VERSION: u16 = 3;
 /// Header length in bytes.
@@ -180,7 +183,9 @@ const VARIANT_RECORD: usize = 52;
 const META_RECORD: usize = 8;
 const THRESHOLDS_LEN: usize = 20;
 const POLICY_HEADER: usize = 8;
-const SCHEDULES_HEADER: usize = 36;
+/// The schedules header before version 6, and from version 6 on (the frame interval).
+const SCHEDULES_HEADER_V5: usize = 36;
+const SCHEDULES_HEADER: usize = 40;
 const BUDGET_RECORD: usize = 16;
 
 /// Section kinds.
@@ -579,6 +584,8 @@ pub struct Schedules<'a> {
     initial: ScheduleAction,
     /// Version 5 on: the first detection reads the table.
     first_from_table: bool,
+    /// Version 6 on: the frame interval the tables count, ms.
+    frame_ms: Option<f32>,
     /// `budget_count` records of [`BUDGET_RECORD`] bytes.
     budgets: &'a [u8],
     budget_count: usize,
@@ -632,6 +639,15 @@ impl<'a> Schedules<'a> {
     /// bundle, whose first frame runs [`Schedules::initial`] under every budget.
     pub const fn first_from_table(&self) -> bool {
         self.first_from_table
+    }
+
+    /// The interval in ms between the frames the tables count (format version 6 on;
+    /// `None` before): the tables' periods are in such frames, their budgets in device
+    /// ms per such frame and the motion edges in pixels per such frame. A camera at
+    /// another rate numbers its frames on this clock ([`crate::schedule::FrameClock`]),
+    /// so that the tables mean on the drone what they meant where they were made.
+    pub const fn frame_ms(&self) -> Option<f32> {
+        self.frame_ms
     }
 
     /// Number of states of one table, `BUCKET_COUNT · V · CONTENT_STATES`.
@@ -1037,10 +1053,19 @@ fn parse_schedules(b: &[u8], variants: usize, version: u16) -> Result<Schedules<
         return Err(BundleError::BadSchedule);
     }
     let initial = u16_at(34)?;
+    let (header, frame_ms) = if version >= 6 {
+        let f = f32_at(36)?;
+        if !(f.is_finite() && f > 0.0) {
+            return Err(BundleError::BadSchedule);
+        }
+        (SCHEDULES_HEADER, Some(f))
+    } else {
+        (SCHEDULES_HEADER_V5, None)
+    };
     let states = variants
         .checked_mul(crate::bundle::BUCKET_COUNT * CONTENT_STATES)
         .ok_or(BundleError::BadSectionLength)?;
-    let budgets_end = SCHEDULES_HEADER + BUDGET_RECORD * budget_count;
+    let budgets_end = header + BUDGET_RECORD * budget_count;
     let expected = states
         .checked_mul(budget_count)
         .and_then(|n| n.checked_mul(2))
@@ -1050,7 +1075,7 @@ fn parse_schedules(b: &[u8], variants: usize, version: u16) -> Result<Schedules<
         return Err(BundleError::BadSectionLength);
     }
     let budgets = b
-        .get(SCHEDULES_HEADER..budgets_end)
+        .get(header..budgets_end)
         .ok_or(BundleError::BadSectionLength)?;
     if budgets
         .chunks_exact(BUDGET_RECORD)
@@ -1078,6 +1103,7 @@ fn parse_schedules(b: &[u8], variants: usize, version: u16) -> Result<Schedules<
             period: 1,
         },
         first_from_table: version >= 5,
+        frame_ms,
         budgets,
         budget_count,
         tables,

@@ -85,6 +85,10 @@ pub struct ScheduleSpec {
     pub periods: Vec<u32>,
     /// The action of the first frame.
     pub initial: ScheduleAction,
+    /// The interval in ms between the frames the tables count (their periods, budgets
+    /// per frame and motion edges per frame), finite and positive: 1000 / 30 for tables
+    /// made on 30 fps video.
+    pub frame_ms: f32,
     /// One table per latency budget, 1 ..= [`MAX_BUDGETS`] of them.
     pub budgets: Vec<BudgetSpec>,
 }
@@ -116,6 +120,8 @@ pub enum WriteError {
     BadEdges,
     /// The schedules have no budget, or more than [`MAX_BUDGETS`].
     BadBudgetCount,
+    /// The schedules' frame interval is not finite and positive.
+    BadFrameInterval,
     /// A budget's figures are not finite, or its budget or slowdown is not positive,
     /// or a latency is negative.
     BadBudget,
@@ -142,6 +148,9 @@ impl fmt::Display for WriteError {
                 "bundle schedule content edges must be finite with 0 <= edge 0 <= edge 1",
             ),
             Self::BadBudgetCount => f.write_str("bundle schedules must have 1 to 8 budgets"),
+            Self::BadFrameInterval => {
+                f.write_str("bundle schedule frame interval must be finite and positive")
+            }
             Self::BadBudget => f.write_str(
                 "bundle schedule budget figures must be finite, budget and slowdown positive",
             ),
@@ -386,6 +395,9 @@ fn schedules_body(spec: &ScheduleSpec, variants: usize) -> Result<Vec<u8>, Write
     if spec.budgets.is_empty() || spec.budgets.len() > MAX_BUDGETS {
         return Err(WriteError::BadBudgetCount);
     }
+    if !(spec.frame_ms.is_finite() && spec.frame_ms > 0.0) {
+        return Err(WriteError::BadFrameInterval);
+    }
     if spec.budgets.iter().any(|b| !b.info.is_valid()) {
         return Err(WriteError::BadBudget);
     }
@@ -408,7 +420,7 @@ fn schedules_body(spec: &ScheduleSpec, variants: usize) -> Result<Vec<u8>, Write
         u16::try_from(code).map_err(|_| WriteError::TooLarge)
     };
     let len16 = |n: usize| u16::try_from(n).map_err(|_| WriteError::TooLarge);
-    let mut b = Vec::with_capacity(36 + spec.budgets.len() * (16 + 2 * states));
+    let mut b = Vec::with_capacity(40 + spec.budgets.len() * (16 + 2 * states));
     for n in [SIZE_BUCKETS, MOTION_BUCKETS, COUNT_BUCKETS, periods.len()] {
         b.extend_from_slice(&len16(n)?.to_le_bytes());
     }
@@ -425,6 +437,7 @@ fn schedules_body(spec: &ScheduleSpec, variants: usize) -> Result<Vec<u8>, Write
     }
     b.extend_from_slice(&len16(spec.budgets.len())?.to_le_bytes());
     b.extend_from_slice(&encode(&spec.initial)?.to_le_bytes());
+    b.extend_from_slice(&spec.frame_ms.to_le_bytes());
     for budget in &spec.budgets {
         let i = budget.info;
         for v in [i.budget_ms, i.slowdown, i.expected_ms, i.p95_ms] {

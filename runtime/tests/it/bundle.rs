@@ -85,6 +85,7 @@ fn schedule_spec(budgets: usize) -> ScheduleSpec {
             variant: 2,
             period: 3,
         },
+        frame_ms: 1e3 / 25.0,
         budgets: (0..budgets)
             .map(|k| BudgetSpec {
                 info: budget_info(k),
@@ -229,8 +230,9 @@ fn schedules_round_trip() {
     let bytes = scheduled_sample();
     let b = Bundle::parse(&bytes).unwrap();
     assert_eq!(b.version(), FORMAT_VERSION);
-    assert_eq!(FORMAT_VERSION, 5);
+    assert_eq!(FORMAT_VERSION, 6);
     let s = b.schedules().expect("schedules");
+    assert_eq!(s.frame_ms(), Some(40.0));
     assert_eq!(
         s.edges(),
         ContentEdges {
@@ -283,12 +285,68 @@ fn schedules_round_trip() {
     assert_eq!(bytes, scheduled_sample());
 }
 
-/// `bytes` with its version field set to `version` and the file checksum fixed.
+/// `bytes` with its version field set to `version` and the checksums fixed; for a
+/// version before 6, the schedules section (if any) laid out as then, without the
+/// frame interval.
 pub(super) fn with_version(bytes: &[u8], version: u16) -> Vec<u8> {
     let mut b = bytes.to_vec();
     b[4..6].copy_from_slice(&version.to_le_bytes());
+    let n = u16::from_le_bytes([b[6], b[7]]) as usize;
+    let u32_at = |b: &[u8], at: usize| u32::from_le_bytes(b[at..at + 4].try_into().unwrap());
+    let schedules = (0..n)
+        .map(|i| HEADER_LEN + i * SECTION_ENTRY_LEN)
+        .find(|&e| u32_at(&b, e) == SectionKind::Schedules as u32);
+    if let (true, Some(entry)) = (version < 6, schedules) {
+        let cut = u32_at(&b, entry + 4) as usize + 36;
+        b.drain(cut..cut + 4);
+        let len = u32_at(&b, entry + 8) - 4;
+        b[entry + 8..entry + 12].copy_from_slice(&len.to_le_bytes());
+        for i in 0..n {
+            let e = HEADER_LEN + i * SECTION_ENTRY_LEN;
+            let off = u32_at(&b, e + 4);
+            if off as usize > cut {
+                b[e + 4..e + 8].copy_from_slice(&(off - 4).to_le_bytes());
+            }
+        }
+        let total = u32_at(&b, 8) - 4;
+        b[8..12].copy_from_slice(&total.to_le_bytes());
+    }
     fix_checksums(&mut b);
     b
+}
+
+/// A version-5 bundle (no frame interval) is read as written, its tables as version 6
+/// holds them, and says it does not know the tables' frame interval; the same bytes
+/// with only the version field changed are never misread.
+#[test]
+fn a_version_5_bundle_is_read_and_never_misread() {
+    let bytes = scheduled_sample();
+    let new = Bundle::parse(&bytes).unwrap();
+    let v5 = with_version(&bytes, 5);
+    assert_eq!(v5.len(), bytes.len() - 4);
+    let old = Bundle::parse(&v5).unwrap();
+    assert_eq!(old.version(), 5);
+    let (s, s5) = (new.schedules().unwrap(), old.schedules().unwrap());
+    assert_eq!(s.frame_ms(), Some(40.0));
+    assert_eq!(s5.frame_ms(), None);
+    assert!(s5.first_from_table());
+    assert_eq!(s5.budget_count(), s.budget_count());
+    for k in 0..s.budget_count() {
+        assert_eq!(s5.budget(k), s.budget(k));
+        for i in 0..s.state_count() {
+            assert_eq!(s5.action(k, i), s.action(k, i), "budget {k} state {i}");
+        }
+    }
+    exercise(&old);
+    // a version-6 layout called 5, or the reverse, is an error, not another reading
+    let mut relabelled = bytes.clone();
+    relabelled[4..6].copy_from_slice(&5u16.to_le_bytes());
+    fix_checksums(&mut relabelled);
+    assert!(Bundle::parse(&relabelled).is_err());
+    let mut relabelled = v5.clone();
+    relabelled[4..6].copy_from_slice(&6u16.to_le_bytes());
+    fix_checksums(&mut relabelled);
+    assert!(Bundle::parse(&relabelled).is_err());
 }
 
 #[test]
@@ -308,7 +366,7 @@ fn a_version_3_bundle_is_read_and_never_misread() {
     assert!(b.schedules().is_none());
     exercise(&b);
     // versions the reader does not know, old or new
-    for version in [0, 1, 2, 6, u16::MAX] {
+    for version in [0, 1, 2, 7, u16::MAX] {
         assert_eq!(
             Bundle::parse(&with_version(&scheduled_sample(), version)).unwrap_err(),
             BundleError::UnsupportedVersion,
@@ -408,29 +466,42 @@ fn schedule_errors_behind_valid_checksums() {
             u16le(9).to_vec(),
             BadScheduleAction,
         ),
-        ("budget 0 ms", 36, f32le(0.0).to_vec(), BadSchedule),
-        ("NaN slowdown", 40, f32le(f32::NAN).to_vec(), BadSchedule),
+        ("frame interval 0 ms", 36, f32le(0.0).to_vec(), BadSchedule),
+        (
+            "NaN frame interval",
+            36,
+            f32le(f32::NAN).to_vec(),
+            BadSchedule,
+        ),
+        (
+            "negative frame interval",
+            36,
+            f32le(-33.3).to_vec(),
+            BadSchedule,
+        ),
+        ("budget 0 ms", 40, f32le(0.0).to_vec(), BadSchedule),
+        ("NaN slowdown", 44, f32le(f32::NAN).to_vec(), BadSchedule),
         (
             "negative expected latency",
-            44,
+            48,
             f32le(-1.0).to_vec(),
             BadSchedule,
         ),
         (
             "infinite p95",
-            60 + 4,
+            64 + 4,
             f32le(f32::INFINITY).to_vec(),
             BadSchedule,
         ),
         (
             "an action = V P",
-            36 + 32,
+            40 + 32,
             u16le(9).to_vec(),
             BadScheduleAction,
         ),
         (
             "the last action",
-            36 + 32 + 2 * 2 * 324 - 2,
+            40 + 32 + 2 * 2 * 324 - 2,
             u16le(u16::MAX).to_vec(),
             BadScheduleAction,
         ),
@@ -444,7 +515,7 @@ fn schedule_errors_behind_valid_checksums() {
     assert_eq!(patched(6, &u16le(2)), BadSchedule);
     // the largest action is fine
     let mut ok = bytes.clone();
-    ok[body + 68..body + 70].copy_from_slice(&u16le(8));
+    ok[body + 72..body + 74].copy_from_slice(&u16le(8));
     fix_checksums(&mut ok);
     let b = Bundle::parse(&ok).unwrap();
     assert_eq!(

@@ -14,8 +14,8 @@ use frugal_runtime::schedule::{
 use frugal_runtime::synth::{ClipSpec, make_clip};
 use frugal_runtime::track::{GrayImage, Pyramid};
 use frugal_runtime::{
-    Access, BBox, BudgetInfo, Bundle, Content, ContentEdges, Decision, Detection, ScheduleAction,
-    ScheduleError, Scheduler, TrackState, Trigger,
+    Access, BBox, BudgetInfo, Bundle, Content, ContentEdges, Decision, Detection, FrameClock,
+    ScheduleAction, ScheduleError, Scheduler, TrackState, Trigger,
 };
 use proptest::prelude::*;
 
@@ -67,6 +67,7 @@ fn bundle_bytes() -> Vec<u8> {
             edges: ContentEdges::DEFAULT,
             periods: vec![1, 4],
             initial: act(1, 1),
+            frame_ms: 1e3 / 30.0,
             budgets: vec![
                 BudgetSpec {
                     info: info(20.0),
@@ -805,4 +806,60 @@ proptest! {
             }
         }
     }
+}
+
+/// The frames a camera of `fps` takes from `start_ms` on, numbered on a 30 fps clock.
+fn numbered(fps: f64, start_ms: f64, frames: u32) -> Vec<Option<u32>> {
+    let mut c = FrameClock::new(1e3 / 30.0).unwrap();
+    (0..frames)
+        .map(|i| c.frame(start_ms + f64::from(i) * 1e3 / fps))
+        .collect()
+}
+
+#[test]
+fn the_frame_clock_numbers_a_camera_on_the_tables_clock() {
+    // at the tables' rate, every frame, in order, from any origin
+    let at_30: Vec<Option<u32>> = (0..300).map(Some).collect();
+    assert_eq!(numbered(30.0, 0.0, 300), at_30);
+    assert_eq!(numbered(30.0, 1.0e7, 300), at_30);
+    // twice as fast: every other frame, numbered as the tables count it
+    let at_60 = numbered(60.0, 250.0, 600);
+    for (i, n) in at_60.iter().enumerate() {
+        let want = (i % 2 == 0).then_some(i as u32 / 2);
+        assert_eq!(*n, want, "camera frame {i}");
+    }
+    // 25 fps: every frame taken, about every sixth counts two table frames on
+    let at_25: Vec<u32> = numbered(25.0, 0.0, 250)
+        .into_iter()
+        .map(Option::unwrap)
+        .collect();
+    let gaps: Vec<u32> = at_25.windows(2).map(|w| w[1] - w[0]).collect();
+    assert!(gaps.iter().all(|&g| g == 1 || g == 2), "{gaps:?}");
+    assert_eq!(at_25[249], 299);
+    // frames taken while perception was busy count: a frame 5.4 intervals on is 5 on
+    let mut c = FrameClock::new(1e3 / 30.0).unwrap();
+    assert_eq!(c.frame(0.0), Some(0));
+    assert_eq!(c.frame(5.4 * 1e3 / 30.0), Some(5));
+    assert_eq!(c.last(), 5);
+    // a quarter interval early is on time; a frame already counted, or captured
+    // before the last one, or at no finite time, is not numbered and changes nothing
+    assert_eq!(c.peek(5.8 * 1e3 / 30.0), Some(6));
+    assert_eq!(c.frame(5.7 * 1e3 / 30.0), None);
+    assert_eq!(c.frame(1.0), None);
+    assert_eq!(c.frame(f64::NAN), None);
+    assert_eq!(c.frame(f64::INFINITY), None);
+    assert_eq!(c.frame(-f64::INFINITY), None);
+    assert_eq!(c.frame(6.0 * 1e3 / 30.0), Some(6));
+    // past u32 frames: the last number, then nothing
+    assert_eq!(c.frame(1e3 / 30.0 * 1e10), Some(u32::MAX));
+    assert_eq!(c.frame(1e3 / 30.0 * 2e10), None);
+    // only a finite, positive interval makes a clock
+    for bad in [0.0, -33.3, f32::NAN, f32::INFINITY] {
+        assert_eq!(FrameClock::new(bad), None, "{bad}");
+    }
+    // the first frame must have a finite time
+    let mut c = FrameClock::new(40.0).unwrap();
+    assert_eq!(c.frame(f64::NAN), None);
+    assert_eq!(c.frame(-80.0), Some(0));
+    assert_eq!(c.frame(0.0), Some(2));
 }

@@ -132,6 +132,8 @@ pub fn fly(
         );
         let compute_ms = percept.compute_ms.max(0.0) + std::mem::take(&mut pending_ms);
         let dt = (compute_ms / 1e3 * config.device.slowdown).max(min_dt);
+        // the camera frames perception drops before the next one it takes
+        let dt = dt + perception.camera_wait_s(t + dt, min_dt);
         dt_avg = Some(dt_avg.map_or(dt, |a| a * 0.7 + dt * 0.3));
 
         // Fly the interval on the current command.
