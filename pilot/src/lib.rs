@@ -82,7 +82,9 @@ pub struct Args {
     pub threads: usize,
     /// Fly the bundle's budget table for this budget (device ms per frame, one of the
     /// budgets the bundle holds) with the budget scheduler, instead of the paper's
-    /// controller.
+    /// controller. With a format-6 bundle the frames are numbered by their times on
+    /// the tables' own clock, and those of a faster input that fall between its frames
+    /// are skipped.
     #[arg(long, requires = "bundle")]
     pub budget_ms: Option<f32>,
     /// With `--budget-ms`: the budget keeper's window, in frames of budget (0: no

@@ -176,8 +176,9 @@ impl FrameClock {
         let Some(start) = self.start_ms else {
             return Some(0);
         };
-        // the cast saturates: a time before the first frame's is 0 (taken), one beyond
-        // u32 frames the last number; for the rest it is the floor
+        // the cast saturates: a time before the first frame's gives 0, a number
+        // already taken; one beyond u32 frames the last number; for the rest it is the
+        // floor
         let n = ((time_ms - start) / self.frame_ms + 0.25) as u32;
         (n > self.last).then_some(n)
     }

@@ -53,7 +53,9 @@ pub struct FlyArgs {
     #[arg(long, default_value_t = 30)]
     pub keep_window: u32,
     /// The camera's frame rate: perception takes at most one frame per camera period
-    /// (`NavConfig::camera_fps`).
+    /// (`NavConfig::camera_fps`). Flying a budget table of a format-6 bundle, the
+    /// frames are numbered on the tables' own clock, and those of a faster camera that
+    /// fall between its frames are dropped.
     #[arg(long, default_value_t = 60.0)]
     pub camera_fps: f64,
     /// ONNX Runtime intra-op threads for detector-based perception.
