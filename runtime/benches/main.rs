@@ -25,8 +25,8 @@ use frugal_runtime::schedule::CONTENT_STATES;
 use frugal_runtime::synth::{ClipSpec, make_clip};
 use frugal_runtime::track::{GrayImage, Pyramid, Tracker, TrackerParams};
 use frugal_runtime::{
-    BBox, BudgetInfo, Bundle, ContentEdges, Controller, Decision, Observation, ScheduleAction,
-    Scheduler, TrackState, TrackStatus,
+    BBox, BudgetInfo, Bundle, ContentEdges, Controller, Decision, FrameClock, Observation,
+    ScheduleAction, Scheduler, TrackState, TrackStatus,
 };
 use std::hint::black_box;
 
@@ -221,6 +221,20 @@ fn schedule<M: Measurement + 'static>(c: &mut Criterion<M>, suffix: &str) {
             })
         });
     }
+    // numbering a 60 fps camera's frames on the tables' 30 fps clock (every other
+    // frame dropped), as the drone does before each step
+    let frame_ms = bundle
+        .schedules()
+        .and_then(|s| s.frame_ms())
+        .expect("format 6");
+    let mut clock = FrameClock::new(frame_ms).expect("clock");
+    let mut camera_frame = 0u64;
+    c.bench_function(&format!("schedule/frame_clock{suffix}"), |b| {
+        b.iter(|| {
+            camera_frame += 1;
+            black_box(clock.frame(black_box(camera_frame as f64 * 1e3 / 60.0)))
+        })
+    });
 }
 
 fn forecast<M: Measurement + 'static>(c: &mut Criterion<M>, suffix: &str) {
