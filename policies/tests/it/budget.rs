@@ -948,6 +948,15 @@ fn the_bundle_records_the_frame_interval_the_tables_count() {
     let (_, bytes) = bundled(&log, &pol);
     let b = frugal_runtime::Bundle::parse(&bytes).unwrap();
     assert_eq!(b.schedules().unwrap().frame_ms(), Some((1e3 / 30.0) as f32));
+    // `frugal bundle inspect` says which clock the tables count
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("policy.frpb");
+    std::fs::write(&file, &bytes).unwrap();
+    let text = frugal_policies::bundle::inspect(&file).unwrap();
+    assert!(
+        text.contains("periods and budgets count frames of 33.33 ms (30.0 fps)"),
+        "{text}"
+    );
     // 25 fps video with its own times, one frame in ten half an interval late
     let mut timed = log.clone();
     for v in &mut timed.videos {
