@@ -376,10 +376,7 @@ pub fn search_tables(
         for (&a, name) in choices.iter().zip(names) {
             let table = vec![a as u16; states];
             let (runs, fig) = full(policy, &table)?;
-            let bare_full = match bare.as_mut() {
-                Some(bare) => Some(full(bare, &table)?),
-                None => None,
-            };
+            let bare_full = bare.as_mut().map(|b| full(b, &table)).transpose()?;
             let (fixed_runs, fixed_fig) = bare_full.as_ref().map_or((&runs, &fig), |(r, f)| (r, f));
             for (t, rs) in tallies.iter_mut().zip(fixed_runs) {
                 let mut pooled = Tally::default();

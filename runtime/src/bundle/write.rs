@@ -22,8 +22,8 @@
 //! ```
 
 use super::{
-    BUCKET_COUNT, Bundle, BundleError, FORMAT_VERSION, HEADER_LEN, MAGIC, SECTION_ENTRY_LEN,
-    ScoreBuckets, SectionKind, Thresholds,
+    BUCKET_COUNT, BUDGET_RECORD, Bundle, BundleError, FORMAT_VERSION, HEADER_LEN, MAGIC,
+    SCHEDULES_HEADER, SECTION_ENTRY_LEN, ScoreBuckets, SectionKind, Thresholds,
 };
 use crate::content::{
     BudgetInfo, CONTENT_STATES, COUNT_BUCKETS, ContentEdges, MAX_BUDGETS, MAX_PERIOD, MAX_PERIODS,
@@ -420,7 +420,8 @@ fn schedules_body(spec: &ScheduleSpec, variants: usize) -> Result<Vec<u8>, Write
         u16::try_from(code).map_err(|_| WriteError::TooLarge)
     };
     let len16 = |n: usize| u16::try_from(n).map_err(|_| WriteError::TooLarge);
-    let mut b = Vec::with_capacity(40 + spec.budgets.len() * (16 + 2 * states));
+    let mut b =
+        Vec::with_capacity(SCHEDULES_HEADER + spec.budgets.len() * (BUDGET_RECORD + 2 * states));
     for n in [SIZE_BUCKETS, MOTION_BUCKETS, COUNT_BUCKETS, periods.len()] {
         b.extend_from_slice(&len16(n)?.to_le_bytes());
     }
