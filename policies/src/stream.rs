@@ -59,7 +59,8 @@ pub struct Output {
 pub struct StreamRun {
     /// Processed frames in processing order.
     pub outputs: Vec<Output>,
-    /// Frames never processed (the latest-frame rule skipped them).
+    /// Frames never processed because the latest-frame rule skipped them (frames a
+    /// step left alone are neither processed nor skipped).
     pub skipped: usize,
 }
 
@@ -71,7 +72,9 @@ pub fn arrivals(n: usize, fps: f64) -> Vec<f64> {
 /// Stream frames arriving at `arrivals_ms` through `step`, which processes one frame
 /// (its index) and returns what it shows and its compute time on the measuring machine
 /// (ms); the device takes `slowdown` times as long. `step` is called on frames in
-/// increasing order, each at most once.
+/// increasing order, each at most once. A step that returns `None` leaves its frame
+/// alone (a schedule that detects every `N` frames with no tracker between): nothing
+/// is output, the latest output stands, and perception stays free for the next frame.
 pub fn simulate<F>(
     arrivals_ms: &[f64],
     rule: FrameRule,
@@ -79,7 +82,7 @@ pub fn simulate<F>(
     mut step: F,
 ) -> Result<StreamRun>
 where
-    F: FnMut(usize) -> Result<(Vec<Detection>, f64)>,
+    F: FnMut(usize) -> Result<Option<(Vec<Detection>, f64)>>,
 {
     let mut run = StreamRun::default();
     let mut free_at = f64::NEG_INFINITY;
@@ -103,7 +106,10 @@ where
                 }
             }
         };
-        let (shown, compute_ms) = step(frame)?;
+        let Some((shown, compute_ms)) = step(frame)? else {
+            next = frame + 1;
+            continue;
+        };
         let device_ms = compute_ms.max(0.0) * slowdown;
         free_at = start + device_ms;
         run.outputs.push(Output {
@@ -333,7 +339,7 @@ mod tests {
         let arr = arrivals(6, 10.0); // 0, 100, ..., 500 ms
         // every frame takes 150 ms on the device
         let run = simulate(&arr, FrameRule::Latest, 1.5, |f| {
-            Ok((vec![det(f as f32)], 100.0))
+            Ok(Some((vec![det(f as f32)], 100.0)))
         })
         .unwrap();
         let frames: Vec<usize> = run.outputs.iter().map(|o| o.frame).collect();
@@ -344,7 +350,7 @@ mod tests {
         // 4 ran 450-600, so 5 (arrived at 500) waited until 600
         assert_eq!(run.outputs.last().unwrap().finish_ms, 750.0);
         let q = simulate(&arr, FrameRule::Queue, 1.5, |f| {
-            Ok((vec![det(f as f32)], 100.0))
+            Ok(Some((vec![det(f as f32)], 100.0)))
         })
         .unwrap();
         assert_eq!(q.outputs.len(), 6);
@@ -355,6 +361,30 @@ mod tests {
     }
 
     #[test]
+    fn a_frame_left_alone_outputs_nothing_and_keeps_perception_free() {
+        let arr = arrivals(8, 10.0); // 0, 100, ..., 700 ms
+        // detect every 3rd frame (150 ms on the device), leave the others alone
+        let run = simulate(&arr, FrameRule::Latest, 1.5, |f| {
+            Ok((f % 3 == 0).then(|| (vec![det(f as f32)], 100.0)))
+        })
+        .unwrap();
+        let frames: Vec<usize> = run.outputs.iter().map(|o| o.frame).collect();
+        // 0 runs 0-150; then 1 (the newest) and 2 are left alone, not skipped; 3 starts
+        // on its arrival (300), 6 on its own (600)
+        assert_eq!(frames, vec![0, 3, 6]);
+        assert_eq!(run.skipped, 0);
+        assert_eq!(run.outputs[1].start_ms, 300.0);
+        assert_eq!(run.outputs[2].start_ms, 600.0);
+        // the frames between two detections are scored against the earlier one
+        let used = latest_outputs(&arr, &run);
+        let (a, b) = (Some(0), Some(1));
+        assert_eq!(used, vec![None, None, a, a, a, b, b, b]);
+        let t = timing(&[(&arr, &run)]);
+        assert_eq!((t.frames, t.processed, t.skipped), (8, 3, 0));
+        assert!((t.device_ms_per_frame - 450.0 / 8.0).abs() < 1e-9);
+    }
+
+    #[test]
     fn forecasting_gives_a_late_detector_back_what_the_motion_took() {
         // a box moving 6 px per frame, a perfect detector whose output is ready 2.5
         // frame periods later: shown 3 frames late, 18 px behind (IoU < 0.5)
@@ -362,7 +392,7 @@ mod tests {
         let arr = arrivals(n, 30.0);
         let truth = moving_truth(n, 6.0);
         let run = simulate(&arr, FrameRule::Latest, 1.0, |f| {
-            Ok((vec![det(6.0 * f as f32)], 2.5 * 1000.0 / 30.0))
+            Ok(Some((vec![det(6.0 * f as f32)], 2.5 * 1000.0 / 30.0)))
         })
         .unwrap();
         let plain = sap(&streaming_images(&arr, &truth, &run), 1).0;
@@ -397,7 +427,7 @@ mod tests {
         let n = 30;
         let arr = arrivals(n, 30.0);
         let truth = moving_truth(n, 10.0);
-        let perfect = |f: usize| Ok((vec![det(10.0 * f as f32)], 2.5 * 1000.0 / 30.0));
+        let perfect = |f: usize| Ok(Some((vec![det(10.0 * f as f32)], 2.5 * 1000.0 / 30.0)));
         let offline: Vec<ImageResult> = truth
             .iter()
             .enumerate()

@@ -73,7 +73,7 @@ pub struct BudgetConfig {
     /// the budget stage has scaled a log, the slowdown it used.
     pub slowdown: f64,
     /// Detect-every-`N` choices, strictly ascending from 1 (the static baseline detects
-    /// every frame), each at most 255 (at most 4).
+    /// every frame when its variant fits the budget), each at most 255 (at most 4).
     pub periods: Vec<u32>,
     /// `κ`: reward lost by switching variants (in frames of F1).
     pub switch_cost: f64,
@@ -530,6 +530,22 @@ impl BudgetPolicies {
                     .then(self.variant_device_ms[b].total_cmp(&self.variant_device_ms[a]))
             })
             .unwrap_or(0)
+    }
+
+    /// Static's fixed action under `budget_ms`, without the tracker: the best static
+    /// variant under the budget ([`BudgetPolicies::static_under`]) at the shortest
+    /// period whose detections alone keep the budget (its device ms over the period;
+    /// the longest period when none does). Every frame when the variant fits the
+    /// budget; when none does, the frames between two detections are left alone and
+    /// their output is the last detection's.
+    pub fn static_action(&self, budget_ms: f64) -> usize {
+        let v = self.static_under(budget_ms);
+        let periods = &self.config.periods;
+        let i = periods
+            .iter()
+            .position(|&n| self.variant_device_ms[v] / f64::from(n.max(1)) <= budget_ms)
+            .unwrap_or(periods.len().saturating_sub(1));
+        self.config.action(v, i)
     }
 
     /// Static + tracker's fixed action under budget `k`: the fixed schedule that streamed

@@ -5,7 +5,10 @@
 //!
 //! 1. `static`: the best static variant under the budget (the most accurate, detecting
 //!    every frame on the training videos, whose detection fits the budget; the
-//!    cheapest when none does), detecting every frame; `static+tracker`: the fixed
+//!    cheapest when none does), without the tracker, detecting every frame when it
+//!    fits and otherwise every `N` frames, the shortest period that keeps the budget,
+//!    the last detection's boxes standing in between
+//!    ([`BudgetPolicies::static_action`]); `static+tracker`: the fixed
 //!    (variant, every `N`) schedule that streams best on the tuning videos while keeping
 //!    the budget there, in device ms per frame on the clock ([`search_tables`]; without
 //!    the search, the best static variant at the shortest `N` whose segment cost fits);
@@ -54,7 +57,8 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum BudgetStrategy {
-    /// The best static variant under the budget, every frame.
+    /// The best static variant under the budget, without the tracker, at the shortest
+    /// period that keeps the budget (every frame when it fits).
     Static,
     /// The fixed (variant, every `N`) schedule, with the tracker, that streams best on
     /// the training videos.
@@ -110,7 +114,7 @@ impl BudgetStrategy {
 /// run: two (budget, strategy) pairs with equal behaviour stream identically.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Behaviour {
-    /// A fixed action (static: the variant at period 1; static+tracker).
+    /// A fixed action (static, static+tracker).
     Fixed(BudgetStrategy, usize),
     /// A uniform draw, at every decision, from these actions.
     Random(Vec<usize>),
@@ -133,7 +137,7 @@ impl BudgetPolicies {
         let b = self.config.budgets_ms[k];
         let st = self.static_under(b);
         match strategy {
-            BudgetStrategy::Static => Behaviour::Fixed(strategy, self.config.action(st, 0)),
+            BudgetStrategy::Static => Behaviour::Fixed(strategy, self.static_action(b)),
             BudgetStrategy::StaticTracker => Behaviour::Fixed(strategy, self.static_tracker(k)),
             BudgetStrategy::RandomTracker => Behaviour::Random(self.allowed(b)),
             BudgetStrategy::Approxdet => {
@@ -432,7 +436,9 @@ pub fn stream_strategy(
                     .to_string(),
             ));
         }
-        Plan::Strategy(BudgetStrategy::Static) => period(Chooser::Fixed(cfg.action(st, 0))),
+        Plan::Strategy(BudgetStrategy::Static) => {
+            period(Chooser::Fixed(pol.static_action(budget_ms)))
+        }
         Plan::Strategy(BudgetStrategy::StaticTracker) => {
             period(Chooser::Fixed(pol.static_tracker(k)))
         }
@@ -486,7 +492,12 @@ pub fn stream_strategy(
             (TrackState::Idle, 0.0)
         };
         let status = if track { p.status() } else { None };
-        let shown = match brain.decide(f, state, status, &ctx) {
+        let decision = brain.decide(f, state, status, &ctx);
+        if decision.is_none() && !tracker {
+            // no tracker to run between detections: the frame is left alone
+            return Ok(None);
+        }
+        let shown = match decision {
             Some(mut v) => loop {
                 let (dets, score, dms) = if tracker {
                     p.detect(f, v)?
@@ -515,7 +526,7 @@ pub fn stream_strategy(
         brain.shown(f, &shown);
         let ms = jittered(ms);
         brain.spent(ms * cfg.slowdown);
-        Ok((shown, ms))
+        Ok(Some((shown, ms)))
     })?;
     let queried = match brain {
         Brain::Scheduler(_, queried) => queried,

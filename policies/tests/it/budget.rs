@@ -545,6 +545,71 @@ fn a_periodic_detection_frame_is_charged_no_tracking() {
     );
 }
 
+/// Static without the tracker: the best static variant under each budget, every frame
+/// when it fits, and otherwise every `N` frames at the shortest period that keeps the
+/// budget, the frames between left alone (no output, nothing charged).
+#[test]
+fn static_detects_as_often_as_its_budget_allows_and_leaves_the_frames_between_alone() {
+    let (log, frames, pol) = trained();
+    let (_, bytes) = bundled(&log, &pol);
+    let p_n = pol.config.periods.len();
+    let mut spaced = 0;
+    for (k, &b) in pol.config.budgets_ms.iter().enumerate() {
+        let a = pol.static_action(b);
+        let (v, n) = (a / p_n, pol.config.periods[a % p_n]);
+        assert_eq!(v, pol.static_under(b), "budget {b}");
+        let ms = pol.variant_device_ms[v];
+        if ms <= b {
+            assert_eq!(n, 1, "budget {b}: the variant fits every frame");
+        } else {
+            assert!(
+                ms / f64::from(n) <= b,
+                "budget {b}: every {n} frames costs too much"
+            );
+            // no shorter period keeps the budget
+            let shorter = pol.config.periods.iter().filter(|&&m| m < n);
+            assert!(
+                shorter.into_iter().all(|&m| ms / f64::from(m) > b),
+                "budget {b}"
+            );
+        }
+        for video in log.split(Split::Test) {
+            let r = stream(
+                &log,
+                video,
+                &frames,
+                &pol,
+                k,
+                &bytes,
+                BudgetStrategy::Static,
+                0,
+                &VideoCache::default(),
+            );
+            let at = |f: usize| format!("budget {b} video {} frame {f}", video.id);
+            for (o, d) in r.run.outputs.iter().zip(&r.detect) {
+                // every output is a detection by the static variant, charged alone
+                assert_eq!(*d, Some(v as u16), "{}", at(o.frame));
+                let want = log.variants[v].latency_ms * pol.config.slowdown;
+                assert!((o.device_ms - want).abs() < 1e-9, "{}", at(o.frame));
+            }
+            for w in r.run.outputs.windows(2) {
+                assert!(w[1].frame - w[0].frame >= n as usize, "{}", at(w[1].frame));
+                spaced += usize::from(n > 1);
+            }
+            // at most one detection per period: on the measured latencies, the budget
+            // per frame streamed (but for the last, partial period)
+            let streamed = video.frames.len() - r.start;
+            assert!(
+                r.run.outputs.len() <= streamed.div_ceil(n as usize),
+                "budget {b} video {}",
+                video.id
+            );
+        }
+    }
+    // the tightest budget fits no variant every frame: static spaces its detections
+    assert!(spaced > 0);
+}
+
 /// Clock run `r` streams every strategy from frame `r mod` the longest period, and
 /// that run is scored on the frames it streamed; with `phases` off every run starts on
 /// the first frame.

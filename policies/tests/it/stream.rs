@@ -132,7 +132,7 @@ fn stream_sap_matches_pycocotools() {
                     class: det_rng.random_range(0..classes) as u16,
                 });
             }
-            Ok((shown, det_rng.random_range(5.0..90.0)))
+            Ok(Some((shown, det_rng.random_range(5.0..90.0))))
         })
         .unwrap();
         assert!(
