@@ -574,17 +574,8 @@ fn static_detects_as_often_as_its_budget_allows_and_leaves_the_frames_between_al
             );
         }
         for video in log.split(Split::Test) {
-            let r = stream(
-                &log,
-                video,
-                &frames,
-                &pol,
-                k,
-                &bytes,
-                BudgetStrategy::Static,
-                0,
-                &VideoCache::default(),
-            );
+            let (st, cache) = (BudgetStrategy::Static, VideoCache::default());
+            let r = stream(&log, video, &frames, &pol, k, &bytes, st, 0, &cache);
             let at = |f: usize| format!("budget {b} video {} frame {f}", video.id);
             for (o, d) in r.run.outputs.iter().zip(&r.detect) {
                 // every output is a detection by the static variant, charged alone
