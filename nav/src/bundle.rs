@@ -274,18 +274,41 @@ impl BundlePerception {
     }
 
     /// The interval between the frames the budget table flown counts, ms, when the
-    /// bundle records it (format 6 on; [`frugal_runtime::Schedules::frame_ms`]).
+    /// bundle records it (format 6 on; [`frugal_runtime::Schedules::frame_ms`]) or
+    /// [`BundlePerception::with_fallback_clock`] gave it.
     pub fn table_frame_ms(&self) -> Option<f64> {
         self.table_clock.map(|c| c.frame_ms())
+    }
+
+    /// The clock [`BundlePerception::frame_number`] numbers frames on, flying a budget
+    /// table with one ([`BundlePerception::table_frame_ms`]).
+    pub fn table_clock(&self) -> Option<&FrameClock> {
+        self.table_clock.as_ref()
+    }
+
+    /// Flying a budget table of a bundle that does not record the tables' frame
+    /// interval (format 5 or older): number the frames on a clock of `frame_ms` (the
+    /// camera's interval, whose frames such tables count) instead of the caller's
+    /// numbering. Nothing changes for a bundle that records it, or with the paper's
+    /// controller. Call it after [`BundlePerception::with_budget`]. Fails unless
+    /// `frame_ms` is positive and finite.
+    pub fn with_fallback_clock(mut self, frame_ms: f64) -> Result<Self, PerceptionError> {
+        let clock = FrameClock::new(frame_ms as f32)
+            .ok_or_else(|| format!("the frame interval must be positive, got {frame_ms} ms"))?;
+        if self.budget_ms.is_some() && self.table_clock.is_none() {
+            self.table_clock = Some(clock);
+        }
+        Ok(self)
     }
 
     /// The number [`BundlePerception::perceive`] is to be given for the frame captured
     /// at `time_s`. Flying a budget table whose bundle records its frame interval: the
     /// frame's number on the tables' clock ([`FrameClock`]), or `None` when the frame
     /// falls on a frame already numbered (a camera faster than the rate the tables
-    /// were made at) and is to be dropped, not perceived. Otherwise (the paper's
-    /// controller, a bundle of format 5 or older): `fallback`, the caller's own
-    /// numbering.
+    /// were made at) and is to be dropped, not perceived; the same with the clock of
+    /// [`BundlePerception::with_fallback_clock`]. Otherwise (the paper's controller, a
+    /// bundle of format 5 or older without a fallback clock): `fallback`, the caller's
+    /// own numbering.
     pub fn frame_number(&mut self, time_s: f64, fallback: u64) -> Option<u64> {
         match self.table_clock.as_mut() {
             Some(c) => c.frame(time_s * 1e3).map(u64::from),

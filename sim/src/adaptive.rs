@@ -31,11 +31,10 @@ pub fn static_onnx(
 
 /// The adaptive runtime in the loop.
 pub struct AdaptivePerception {
-    inner: BundlePerception,
-    /// Flying a budget table: numbers the frames by their capture times on the
+    /// Flying a budget table, it numbers the frames by their capture times on the
     /// tables' clock (the bundle's frame interval, or the camera's for a bundle of
     /// format 5 or older), so that frames taken while perception was busy count.
-    clock: Option<FrameClock>,
+    inner: BundlePerception,
     /// Camera frames dropped because they fell on a frame the clock had numbered.
     dropped: u64,
 }
@@ -43,18 +42,13 @@ pub struct AdaptivePerception {
 impl AdaptivePerception {
     /// Open the bundle folder `dir` ([`BundlePerception::open`]).
     pub fn open(dir: &Path, threads: usize) -> Result<Self, PerceptionError> {
-        BundlePerception::open(dir, threads).map(|inner| Self {
-            inner,
-            clock: None,
-            dropped: 0,
-        })
+        BundlePerception::open(dir, threads).map(|inner| Self { inner, dropped: 0 })
     }
 
     /// Carry detections from `carry`'s bucket up ([`BundlePerception::with_carry`]).
     pub fn with_carry(self, carry: Carry) -> Self {
         Self {
             inner: self.inner.with_carry(carry),
-            clock: None,
             dropped: 0,
         }
     }
@@ -82,13 +76,9 @@ impl AdaptivePerception {
         let inner = self
             .inner
             .with_budget(budget_ms, keep_window)?
-            .with_debit_scale(slowdown as f32)?;
-        let frame_ms = inner.table_frame_ms().unwrap_or(1e3 / camera_fps);
-        Ok(Self {
-            inner,
-            clock: FrameClock::new(frame_ms as f32),
-            dropped: 0,
-        })
+            .with_debit_scale(slowdown as f32)?
+            .with_fallback_clock(1e3 / camera_fps)?;
+        Ok(Self { inner, dropped: 0 })
     }
 
     /// The parsed bundle.
@@ -120,18 +110,21 @@ impl Perception for AdaptivePerception {
         // table, the frame's on the tables' clock (the flight waits for a frame the
         // clock takes: `camera_wait_s`; should one fall on the same number anyway, it
         // is perceived as that frame again)
-        let n = match self.clock.as_mut() {
-            Some(c) => c.frame(input.time_s * 1e3).unwrap_or(c.last()),
-            None => u32::try_from(input.index).unwrap_or(u32::MAX),
+        let n = match self.inner.frame_number(input.time_s, input.index) {
+            Some(n) => n,
+            None => self
+                .inner
+                .table_clock()
+                .map_or(input.index, |c| u64::from(c.last())),
         };
-        self.inner.perceive(input.image, u64::from(n))
+        self.inner.perceive(input.image, n)
     }
 
     /// Flying a budget table: the wait, in whole camera frames of `camera_dt_s`, from
     /// `ready_s` to the first frame the tables' clock numbers; the frames in between
     /// are dropped (a camera faster than the tables' rate).
     fn camera_wait_s(&mut self, ready_s: f64, camera_dt_s: f64) -> f64 {
-        let Some(c) = self.clock.as_ref() else {
+        let Some(c) = self.inner.table_clock() else {
             return 0.0;
         };
         let k = frames_to_wait(c, ready_s, camera_dt_s);

@@ -200,6 +200,45 @@ fn through_a_real_bundle_the_pilot_perceives_and_acts_as_the_simulator_frame_by_
     );
     let tables = flies_the_budget_tables(tmp.path(), &rec, &bundle);
     flies_the_budget_tables_in_the_maze(tmp.path(), &bundle, &tables);
+    a_fallback_clock_never_overrides_the_bundles(&bundle, tables[0].0);
+}
+
+/// `BundlePerception::with_fallback_clock` (the camera's clock, for a bundle that does
+/// not record its tables'): a bundle that records its clock keeps it, the paper's
+/// controller keeps the caller's numbering, and an interval that is not positive is
+/// refused.
+fn a_fallback_clock_never_overrides_the_bundles(bundle: &Path, budget: f32) {
+    let bytes = std::fs::read(bundle.join(frugal_nav::BUNDLE_FILE)).expect("bundle file");
+    let parsed = frugal_runtime::Bundle::parse(&bytes).expect("bundle parses");
+    let recorded = parsed
+        .schedules()
+        .and_then(|s| s.frame_ms())
+        .expect("the bundle records its tables' frame interval");
+    let open = || frugal_nav::BundlePerception::open(bundle, 1).expect("bundle opens");
+    let mut flown = open()
+        .with_budget(budget, 0)
+        .expect("budget table")
+        .with_fallback_clock(1e3 / 60.0)
+        .expect("a fallback clock");
+    assert_eq!(flown.table_frame_ms(), Some(f64::from(recorded)));
+    // on the bundle's clock, not the fallback's: the frame at 1 s is frame 30 at 30 fps
+    assert_eq!(flown.frame_number(0.0, 99), Some(0));
+    let at_1s = (1e3 / f64::from(recorded)).round() as u64;
+    assert_eq!(flown.frame_number(1.0, 99), Some(at_1s));
+    let mut controller = open()
+        .with_fallback_clock(1e3 / 60.0)
+        .expect("a fallback clock");
+    assert!(controller.table_clock().is_none());
+    assert_eq!(controller.frame_number(1.0, 7), Some(7));
+    for bad in [0.0, -1.0, f64::NAN] {
+        let err = open()
+            .with_budget(budget, 0)
+            .expect("budget table")
+            .with_fallback_clock(bad)
+            .err()
+            .expect("refused");
+        assert!(err.to_string().contains("frame interval"), "{err}");
+    }
 }
 
 /// `--budget-ms` flies each budget table the bundle ships with the budget scheduler:
