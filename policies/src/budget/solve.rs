@@ -29,19 +29,20 @@ struct Sample {
 /// ([`VideoLog::arrivals_ms`]: their own times, else `fps`), ms: the clock the tables
 /// learnt on them count. `1000 / fps` when no video has two frames.
 fn frame_interval_ms(videos: &[&VideoLog], fps: f64) -> f64 {
-    let mut gaps: Vec<f64> = videos
-        .iter()
-        .flat_map(|v| {
-            let a = v.arrivals_ms(fps);
-            a.windows(2).map(|w| w[1] - w[0]).collect::<Vec<_>>()
-        })
-        .filter(|g| g.is_finite() && *g > 0.0)
-        .collect();
-    if gaps.is_empty() {
-        return 1e3 / fps;
+    let mut gaps = Vec::new();
+    for v in videos {
+        let a = v.arrivals_ms(fps);
+        gaps.extend(
+            a.windows(2)
+                .map(|w| w[1] - w[0])
+                .filter(|g| g.is_finite() && *g > 0.0),
+        );
     }
-    gaps.sort_by(f64::total_cmp);
-    gaps[gaps.len() / 2]
+    if gaps.is_empty() {
+        1e3 / fps
+    } else {
+        crate::scoring::median(&mut gaps)
+    }
 }
 
 /// Learn the budget policies from the log's training videos.
