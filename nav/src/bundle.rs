@@ -389,7 +389,12 @@ impl BundlePerception {
             self.have_prev = false;
         }
         let mut cur = Pyramid::new(&mut self.cur, w, h, levels)?;
-        cur.build_rgb(&frame)?;
+        // the pyramid only when the pilot reads it: not under a table action that
+        // leaves the frames between detections alone ([`Pilot::tracks_between`])
+        let mut built = self.pilot.tracks_between();
+        if built {
+            cur.build_rgb(&frame)?;
+        }
         let prev = if self.have_prev {
             Some(Pyramid::new(&mut self.prev, w, h, levels)?)
         } else {
@@ -401,6 +406,11 @@ impl BundlePerception {
             Decision::Detect { variant, reason } => {
                 if let Some(n) = self.detections_per_trigger.get_mut(reason as usize) {
                     *n += 1;
+                }
+                // the detection's action tracks its boxes: the trackers start on it
+                if !built && self.pilot.tracks_between() {
+                    cur.build_rgb(&frame)?;
+                    built = true;
                 }
                 // the first variant, then any the policy asks for on the same frame
                 let (detectors, counts) = (&mut self.detectors, &mut self.runs_per_variant);
@@ -416,7 +426,7 @@ impl BundlePerception {
             Decision::Track => self.pilot.tracked().collect(),
         };
         std::mem::swap(&mut self.prev, &mut self.cur);
-        self.have_prev = true;
+        self.have_prev = built;
         self.last_run = (self.runs_per_variant.iter().zip(runs_before))
             .enumerate()
             .filter(|(_, (r, before))| r.runs > *before)

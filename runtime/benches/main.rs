@@ -89,6 +89,7 @@ fn scheduled_bundle_bytes() -> Vec<u8> {
                 .map(|i| ScheduleAction {
                     variant: ((i * 5 + k) % 8) as u16,
                     period: periods[(i / 3 + k) % 4],
+                    track: true,
                 })
                 .collect(),
         })
@@ -100,6 +101,7 @@ fn scheduled_bundle_bytes() -> Vec<u8> {
             initial: ScheduleAction {
                 variant: 0,
                 period: 1,
+                track: true,
             },
             frame_ms: 1e3 / 30.0,
             budgets,

@@ -207,13 +207,30 @@ impl ContentTracker {
     }
 }
 
-/// A schedule's action: run `variant` now, then track for `period - 1` frames.
+/// A schedule's action: run `variant` now, then, for `period - 1` frames, track its
+/// boxes (`track`) or leave the frames alone, the detection's boxes standing.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ScheduleAction {
     /// The variant to run.
     pub variant: VariantId,
     /// Detect every `period` frames (`N >= 1`; 1 detects on every frame).
     pub period: u32,
+    /// Track the detection's boxes into the frames before the next detection (the
+    /// trackers start on them); `false`: start no tracker and leave those frames alone,
+    /// the detection's boxes standing until the next one (format version 7 on; every
+    /// action of an older bundle tracks).
+    pub track: bool,
+}
+
+impl ScheduleAction {
+    /// Run `variant` every `period` frames, tracking its boxes in between.
+    pub const fn tracked(variant: VariantId, period: u32) -> Self {
+        Self {
+            variant,
+            period,
+            track: true,
+        }
+    }
 }
 
 /// What a budget table was made for, and what it was measured to cost.

@@ -27,7 +27,12 @@
 //! held tracks before a frame and none survives it, each image gets one detection
 //! ([`Pilot::detected`] answers [`Access::Done`]), and the pilot reports to
 //! [`Scheduler::shown`] what each frame shows: the reported detections on a detection
-//! frame, the tracked boxes on a tracked one.
+//! frame, the tracked boxes on a tracked one. Under a table action that does not track
+//! ([`crate::schedule::ScheduleAction::track`]) the pilot starts no tracker on what the
+//! detection reported: those boxes stand ([`Pilot::standing`]), the frames before the
+//! next detection are left alone (no tracking, nothing reported to the scheduler) and
+//! [`Pilot::tracked`] gives the standing boxes, so a caller may skip building their
+//! pyramids ([`Pilot::tracks_between`]).
 //!
 //! ```
 //! use frugal_runtime::bundle::write::{BundleWriter, FamilySpec, VariantSpec};
@@ -156,6 +161,8 @@ pub struct Pilot<'b, const TRACKS: usize, const POINTS: usize> {
     carry: Carry,
     /// A reported detection of the last detection frame has no tracker.
     untracked: bool,
+    /// The held boxes are the last detection's, standing: its action does not track.
+    standing: bool,
     stats: TrackStats,
 }
 
@@ -193,6 +200,7 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
             limit: TRACKS,
             carry,
             untracked: false,
+            standing: false,
             stats: TrackStats {
                 started: 0,
                 not_carried: 0,
@@ -300,9 +308,29 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
         self.stats
     }
 
-    /// How many boxes are being tracked.
+    /// How many boxes are being tracked (or stand, [`Pilot::standing`]).
     pub const fn tracking(&self) -> usize {
         self.active
+    }
+
+    /// Whether the boxes held are the last detection's, standing untracked: its table
+    /// action does not track ([`Scheduler::tracks`]), so until the next detection the
+    /// frames are left alone and [`Pilot::tracked`] gives those boxes as they were found.
+    pub const fn standing(&self) -> bool {
+        self.standing
+    }
+
+    /// Whether the pilot tracks between detections under its current action: always
+    /// with the controller; with a scheduler, as its current action says
+    /// ([`Scheduler::tracks`]). When it does not, the next [`Pilot::decide`] reads no
+    /// pyramid, and [`Pilot::detected`] reads one only if the detection's new action
+    /// tracks (ask again after [`Decision::Detect`]): a caller may build pyramids only
+    /// then, passing an unbuilt one otherwise.
+    pub const fn tracks_between(&self) -> bool {
+        match &self.engine {
+            Engine::Controller(_) => true,
+            Engine::Scheduler(s) => s.tracks(),
+        }
     }
 
     /// Track the held boxes from `prev` into `cur` (skipped when `prev` is `None`) and
@@ -311,7 +339,9 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
     /// scheduler [`TrackState::Lost`]; on [`Decision::Track`] it reports the tracked
     /// boxes to [`Scheduler::shown`]. A scheduled pilot does not track into a frame
     /// its scheduler detects on anyway ([`Scheduler::due`]): the detection replaces
-    /// the boxes, so the tracking would be wasted compute.
+    /// the boxes, so the tracking would be wasted compute; nor, under an action that
+    /// does not track, into any frame ([`Pilot::standing`]): the scheduler is told
+    /// [`TrackState::Idle`] and a [`Decision::Track`] frame is left alone.
     pub fn decide(
         &mut self,
         frame: u32,
@@ -322,7 +352,7 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
         let held_before = self.active > 0;
         let mut status: Option<TrackStatus> = None;
         let due = match &self.engine {
-            Engine::Scheduler(s) => s.due(frame),
+            Engine::Scheduler(s) => s.due(frame) || self.standing,
             Engine::Controller(_) => false,
         };
         if let (Some(prev), false) = (prev, due) {
@@ -368,7 +398,9 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
             Engine::Scheduler(s) => {
                 // without `prev` the held boxes could not follow into this frame (on
                 // a due frame they were not tracked: the step detects anyway)
-                let track = if due || (prev.is_some() && self.active > 0) {
+                let track = if self.standing {
+                    TrackState::Idle
+                } else if due || (prev.is_some() && self.active > 0) {
                     TrackState::Held
                 } else if held_before {
                     TrackState::Lost
@@ -376,7 +408,7 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
                     TrackState::Idle
                 };
                 let decision = s.step(frame, track);
-                if decision == Decision::Track {
+                if decision == Decision::Track && !self.standing {
                     let held = self.held.iter().take(self.active);
                     s.shown(
                         frame,
@@ -417,10 +449,13 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
     /// variant on the same frame. A reported box that is not tracked (below
     /// `track_score`, or its tracker cannot start) makes the next [`Pilot::decide`]
     /// detect again. A scheduled pilot answers [`Access::Done`] and reports the
-    /// reported boxes to [`Scheduler::shown`].
+    /// reported boxes to [`Scheduler::shown`]; under an action that does not track it
+    /// starts no tracker (`cur` is not read) and holds the reported boxes as they are
+    /// ([`Pilot::standing`]).
     pub fn detected(&mut self, cur: &Pyramid<'_>, detections: &[Detection]) -> Access {
         self.active = 0;
         self.untracked = false;
+        self.standing = !self.tracks_between();
         let t_c = self.report_score();
         let carry = self.track_score();
         for d in detections
@@ -431,6 +466,12 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
             let Some(h) = self.held.get_mut(self.active) else {
                 break;
             };
+            if self.standing {
+                h.tracker.reset();
+                h.detection = *d;
+                self.active += 1;
+                continue;
+            }
             if d.score < carry {
                 self.untracked = true;
                 self.stats.not_carried = self.stats.not_carried.wrapping_add(1);
@@ -483,10 +524,16 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
         }
     }
 
-    /// The tracked boxes, with the class and score of the detection each started from.
+    /// The tracked boxes, with the class and score of the detection each started from
+    /// (the standing boxes as they were found, [`Pilot::standing`]).
     pub fn tracked(&self) -> impl Iterator<Item = Detection> + '_ {
-        self.held.iter().take(self.active).map(|h| Detection {
-            bbox: h.tracker.bbox(),
+        let standing = self.standing;
+        self.held.iter().take(self.active).map(move |h| Detection {
+            bbox: if standing {
+                h.detection.bbox
+            } else {
+                h.tracker.bbox()
+            },
             ..h.detection
         })
     }

@@ -19,7 +19,10 @@
 //! 2. `scheduler.step(t, track)`;
 //! 3. on [`Decision::Detect`], run that variant on frame `t`, hand its best score to
 //!    [`Scheduler::detected`] and (re)start the trackers on what it found; on
-//!    [`Decision::Track`], keep the tracked boxes;
+//!    [`Decision::Track`], keep the tracked boxes. An action that does not track
+//!    ([`ScheduleAction::track`], [`Scheduler::tracks`]) starts no tracker: step 1
+//!    tracks nothing ([`TrackState::Idle`]) and a [`Decision::Track`] frame is left
+//!    alone (no output, no compute, step 4 skipped), the detection's boxes standing;
 //! 4. `scheduler.shown(t, count, largest)` with what frame `t` shows (the detections
 //!    on a detection frame, the tracked boxes otherwise; [`largest_box`] picks the box);
 //! 5. with a budget keeper ([`Scheduler::keep_budget`]), `scheduler.spent(ms)` with the
@@ -112,6 +115,7 @@ pub struct Scheduler<'a> {
     variants: usize,
     variant: VariantId,
     period: u32,
+    track: bool,
     score: Option<f32>,
     content: ContentTracker,
     started: bool,
@@ -282,6 +286,7 @@ impl<'a> Scheduler<'a> {
             } else {
                 1
             },
+            track: initial.track,
             score: None,
             content: ContentTracker::new(schedules.edges()),
             started: false,
@@ -381,6 +386,16 @@ impl<'a> Scheduler<'a> {
         self.period
     }
 
+    /// Whether the current action tracks the last detection's boxes into the frames
+    /// before the next detection; `false` (an action of a version-7 table): no tracker
+    /// runs, and on [`Decision::Track`] the frame is left alone, the last detection's
+    /// boxes standing. Read it after a [`Decision::Detect`] to know whether to start
+    /// trackers on what the detection found, and before a frame to know whether to
+    /// track into it.
+    pub const fn tracks(&self) -> bool {
+        self.track
+    }
+
     /// The last detection's best score as the scheduler saw it.
     pub const fn last_score(&self) -> Option<f32> {
         self.score
@@ -418,6 +433,7 @@ impl<'a> Scheduler<'a> {
     const fn adopt(&mut self, action: ScheduleAction) {
         self.variant = action.variant;
         self.period = if action.period > 0 { action.period } else { 1 };
+        self.track = action.track;
     }
 
     /// True when [`Scheduler::step`] on `frame` detects whatever the trackers report:

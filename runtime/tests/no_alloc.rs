@@ -97,6 +97,8 @@ fn scheduled_bundle() -> Vec<u8> {
                 .map(|i| ScheduleAction {
                     variant: ((i / 7 + k) % 2) as u16,
                     period: periods[(i + k) % 4],
+                    // a third of the actions leave the frames between alone
+                    track: (i / 3 + k) % 3 != 0,
                 })
                 .collect(),
         })
@@ -108,6 +110,7 @@ fn scheduled_bundle() -> Vec<u8> {
             initial: ScheduleAction {
                 variant: 1,
                 period: 1,
+                track: true,
             },
             frame_ms: 1e3 / 30.0,
             budgets,

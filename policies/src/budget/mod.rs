@@ -150,6 +150,13 @@ pub struct BudgetConfig {
     /// streams of the search and of the evaluation run it, and so should the drone
     /// ([`frugal_runtime::pilot::Pilot::with_budget_keeper`] with this window).
     pub keep_window: u32,
+    /// The search on the clock may also give a state an action that starts no tracker:
+    /// detect with the variant every `N` frames and leave the frames between alone,
+    /// the detection's boxes standing (as `static` runs;
+    /// [`frugal_runtime::ScheduleAction::track`], bundle format 7). Such an action
+    /// costs the variant's device ms over `N` per frame, without the tracker's pyramid
+    /// and starts. `false`: every action tracks, as in bundles before format 7.
+    pub untracked_actions: bool,
 }
 
 /// What one move of the search on the clock sets.
@@ -224,6 +231,7 @@ impl Default for BudgetConfig {
             forecast_alpha: frugal_runtime::ForecastParams::DEFAULT.alpha,
             burst: 1.5,
             keep_window: 30,
+            untracked_actions: true,
         }
     }
 }
@@ -431,13 +439,62 @@ pub struct BudgetPolicies {
 }
 
 impl BudgetPolicies {
+    /// The number of actions that track, `V · P`: action `a` below it runs variant
+    /// `a / P` every `periods[a % P]` frames and tracks in between; `a` from it up is
+    /// action `a − V · P` without the tracker (the frames between detections left
+    /// alone), as the bundle encodes them from format 7 on.
+    pub fn tracked_actions(&self) -> usize {
+        self.variants.len() * self.config.periods.len()
+    }
+
+    /// Whether action `a` tracks between its detections.
+    pub fn tracks(&self, a: usize) -> bool {
+        a < self.tracked_actions()
+    }
+
+    /// The variant of action `a`.
+    pub fn variant_of(&self, a: usize) -> usize {
+        (a % self.tracked_actions().max(1)) / self.config.periods.len().max(1)
+    }
+
+    /// The period of action `a`, frames.
+    pub fn period_of(&self, a: usize) -> u32 {
+        self.config.periods[a % self.config.periods.len()]
+    }
+
     /// The runtime action of an action index.
     pub fn schedule_action(&self, a: usize) -> ScheduleAction {
-        let p = self.config.periods.len();
         ScheduleAction {
-            variant: (a / p) as u16,
-            period: self.config.periods[a % p],
+            variant: self.variant_of(a) as u16,
+            period: self.period_of(a),
+            track: self.tracks(a),
         }
+    }
+
+    /// Device ms per frame of action `a` by itself: on the training segments for one
+    /// that tracks ([`BudgetPolicies::action_ms`]); the variant's detection over the
+    /// period for one that does not.
+    pub fn cost_ms(&self, a: usize) -> f64 {
+        if self.tracks(a) {
+            self.action_ms[a]
+        } else {
+            self.variant_device_ms[self.variant_of(a)] / f64::from(self.period_of(a).max(1))
+        }
+    }
+
+    /// The actions a budget table may hold under `budget_ms`: [`Self::choices`], and,
+    /// with [`BudgetConfig::untracked_actions`], every action without the tracker
+    /// whose detections over its period fit [`BudgetConfig::burst`] times the budget
+    /// ([`Self::cost_ms`]). Ascending: the tracked ones first.
+    pub fn table_choices(&self, budget_ms: f64) -> Vec<usize> {
+        let mut all = self.choices(budget_ms);
+        if self.config.untracked_actions {
+            let a_n = self.tracked_actions();
+            all.extend(
+                (a_n..2 * a_n).filter(|&a| self.cost_ms(a) <= self.config.burst * budget_ms),
+            );
+        }
+        all
     }
 
     /// The runtime's form: one table per budget, for the bundle.

@@ -290,6 +290,15 @@ impl<'a> Perceiver<'a> {
         Ok((dets, score, ms))
     }
 
+    /// Frame `f`, step 2 on a detection whose boxes are not tracked (an action without
+    /// the tracker): the held boxes are dropped, and no tracker starts.
+    pub fn forget(&mut self, f: usize) {
+        self.last = Some(f);
+        self.path.clear();
+        self.held.clear();
+        self.status = None;
+    }
+
     /// Frame `f`, step 2 on a tracked frame: the carried boxes with their detection's
     /// class and score.
     pub fn tracked(&self) -> Vec<Detection> {

@@ -216,12 +216,22 @@ impl Brain<'_> {
                 started,
                 last_detection,
                 ..
-            } => {
-                let p_n = ctx.pol.config.periods.len();
-                !*started
-                    || frame.wrapping_sub(*last_detection) >= ctx.pol.config.periods[*action % p_n]
-            }
+            } => !*started || frame.wrapping_sub(*last_detection) >= ctx.pol.period_of(*action),
             Brain::Controller(_) | Brain::Oracle { .. } => false,
+        }
+    }
+
+    /// Whether the current action tracks between detections: the budget table's
+    /// ([`Scheduler::tracks`]) or the fixed one's; the others always track (when their
+    /// strategy has the tracker at all).
+    fn tracks(&self, ctx: &Ctx<'_>) -> bool {
+        match self {
+            Brain::Scheduler(s, _) => s.tracks(),
+            Brain::Period {
+                choose: Chooser::Fixed(a),
+                ..
+            } => ctx.pol.tracks(*a),
+            _ => true,
         }
     }
 
@@ -280,12 +290,11 @@ impl Brain<'_> {
                 last_schedule,
                 content,
             } => {
-                let p_n = ctx.pol.config.periods.len();
                 let every = match choose {
                     Chooser::Approxdet => ctx.pol.config.approxdet_every,
                     _ => 0,
                 };
-                let period = ctx.pol.config.periods[*action % p_n];
+                let period = ctx.pol.period_of(*action);
                 let due = !*started
                     || state == TrackState::Lost
                     || frame.wrapping_sub(*last_detection) >= period;
@@ -307,7 +316,7 @@ impl Brain<'_> {
                 }
                 *started = true;
                 *last_detection = frame;
-                Some(*action / p_n)
+                Some(ctx.pol.variant_of(*action))
             }
         }
     }
@@ -362,12 +371,12 @@ pub struct BudgetRun {
 }
 
 /// What [`stream_strategy`] streams: a strategy, or one fixed (variant, every `N`)
-/// action with the tracker (as static + tracker runs its own).
+/// action (as static + tracker runs its own).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Plan {
     /// A strategy under the budget.
     Strategy(BudgetStrategy),
-    /// This fixed action, with the tracker.
+    /// This fixed action: with the tracker when it tracks ([`BudgetPolicies::tracks`]).
     Fixed(usize),
 }
 
@@ -478,14 +487,17 @@ pub fn stream_strategy(
         iou,
     };
     let mut p = Perceiver::new(log, video, frames, cache, cost, cfg.max_tracks);
+    // the strategy's tracker; the current action says whether it runs (the budget
+    // table's, or a fixed action without it)
     let tracker = strategy.tracker();
     let mut detect = Vec::new();
     let arr = video.arrivals_ms(cfg.fps);
     let start = cfg.start_frame(clock_run).min(arr.len().saturating_sub(1));
     let run = simulate(&arr[start..], cfg.rule, cfg.slowdown, |i| {
         let f = start + i;
+        let tracking = tracker && brain.tracks(&ctx);
         // a frame detected on anyway is not tracked into (as the runtime's `Pilot`)
-        let track = tracker && !brain.due(f, &ctx);
+        let track = tracking && !brain.due(f, &ctx);
         let (state, mut ms) = if track {
             p.track(f)?
         } else {
@@ -493,15 +505,17 @@ pub fn stream_strategy(
         };
         let status = if track { p.status() } else { None };
         let decision = brain.decide(f, state, status, &ctx);
-        if decision.is_none() && !tracker {
+        if decision.is_none() && !tracking {
             // no tracker to run between detections: the frame is left alone
             return Ok(None);
         }
         let shown = match decision {
             Some(mut v) => loop {
-                let (dets, score, dms) = if tracker {
+                // the action just taken says whether its boxes are tracked
+                let (dets, score, dms) = if tracker && brain.tracks(&ctx) {
                     p.detect(f, v)?
                 } else {
+                    p.forget(f);
                     (
                         crate::budget::reported(log, video, f, v),
                         video.frames[f].best_score(v),

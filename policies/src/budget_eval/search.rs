@@ -324,7 +324,10 @@ pub fn search_tables(
     for k in 0..budgets {
         let pol = policy.budget.as_ref().ok_or_else(no_tables)?;
         let budget = cfg.budgets_ms[k];
-        let choices = pol.choices(budget);
+        // the actions a table may hold: with the tracker (static + tracker's and the
+        // hindsight bound's choices) and, when allowed, without it
+        let choices = pol.table_choices(budget);
+        let tracked: Vec<usize> = choices.iter().copied().filter(|&a| pol.tracks(a)).collect();
         let states = pol.policies[k].actions.len();
         let v_n = pol.variants.len();
         let mut tables = 0usize;
@@ -340,11 +343,12 @@ pub fn search_tables(
             .map(|&a| {
                 let s = pol.schedule_action(a);
                 format!(
-                    "fixed {} every {}",
+                    "fixed {} every {}{}",
                     pol.variants
                         .get(usize::from(s.variant))
                         .map_or("?", String::as_str),
-                    s.period
+                    s.period,
+                    if s.track { "" } else { " untracked" }
                 )
             })
             .collect();
@@ -370,12 +374,20 @@ pub fn search_tables(
             }
             bare
         });
-        // per tuning video, per fixed schedule: its clock runs' tally (the bound's)
+        // per tuning video, per fixed schedule with the tracker: its clock runs' tally
+        // (the bound's)
         let mut tallies: Vec<Vec<Tally>> =
-            vec![Vec::with_capacity(choices.len()); clock.videos.len()];
+            vec![Vec::with_capacity(tracked.len()); clock.videos.len()];
         for (&a, name) in choices.iter().zip(names) {
             let table = vec![a as u16; states];
             let (runs, fig) = full(policy, &table)?;
+            if !tracked.contains(&a) {
+                // a start, but neither static + tracker's schedule nor the bound's
+                if better_start(&fig, &best.3, budget) {
+                    best = (name, table, runs, fig);
+                }
+                continue;
+            }
             let bare_full = bare.as_mut().map(|b| full(b, &table)).transpose()?;
             let (fixed_runs, fixed_fig) = bare_full.as_ref().map_or((&runs, &fig), |(r, f)| (r, f));
             for (t, rs) in tallies.iter_mut().zip(fixed_runs) {
@@ -397,9 +409,9 @@ pub fn search_tables(
         }
         let start_at = best_fixed
             .as_ref()
-            .and_then(|(bf, _)| choices.iter().position(|&c| c == usize::from(*bf)))
+            .and_then(|(bf, _)| tracked.iter().position(|&c| c == usize::from(*bf)))
             .unwrap_or(0);
-        let every: Vec<usize> = (0..choices.len()).collect();
+        let every: Vec<usize> = (0..tracked.len()).collect();
         let (_, bound) = super::hindsight::bound(clock.classes, &tallies, &every, start_at, budget);
         let (start, mut table, mut runs, mut fig) = best;
         let mut changes = 0usize;

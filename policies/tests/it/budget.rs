@@ -192,9 +192,19 @@ fn the_approxdet_baseline_takes_the_most_accurate_action_under_budget_over_headr
 /// postpones detections too.
 #[test]
 fn the_runtime_pilot_runs_the_budget_policy_as_the_evaluation() {
-    let (mut log, frames, pol) = trained();
+    let (mut log, frames, mut pol) = trained();
     for v in &mut log.variants {
         v.latency_ms *= 2.0;
+    }
+    // a third of the states take their action without the tracker: those detections'
+    // boxes stand and the frames up to the next detection are left alone
+    let a_n = pol.tracked_actions() as u16;
+    for p in &mut pol.policies {
+        for (s, a) in p.actions.iter_mut().enumerate() {
+            if s % 3 == 0 {
+                *a += a_n;
+            }
+        }
     }
     let mut policy = train(&log, &PolicyConfig::default()).unwrap();
     policy.budget = Some(BudgetPolicies {
@@ -209,7 +219,7 @@ fn the_runtime_pilot_runs_the_budget_policy_as_the_evaluation() {
         .unwrap();
     let levels = TrackerParams::DEFAULT.lk.levels;
     let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
-    let (mut detections, mut tracked, mut postponed) = (0, 0, 0);
+    let (mut detections, mut tracked, mut postponed, mut left_alone) = (0, 0, 0, 0);
     // one cache per video for every budget: later budgets read steps back
     let caches: Vec<VideoCache> = videos.iter().map(|_| VideoCache::default()).collect();
     for k in 0..pol.config.budgets_ms.len() {
@@ -225,7 +235,6 @@ fn the_runtime_pilot_runs_the_budget_policy_as_the_evaluation() {
                 0,
                 cache,
             );
-            assert_eq!(run.run.outputs.len(), video.frames.len());
             let (w, h) = (video.width as usize, video.height as usize);
             let need = Pyramid::required_len(w, h, levels).unwrap();
             let (mut a, mut b, mut gray) = (vec![0u8; need], vec![0u8; need], vec![0u8; w * h]);
@@ -236,39 +245,52 @@ fn the_runtime_pilot_runs_the_budget_policy_as_the_evaluation() {
                     .with_budget_keeper(pol.config.keep_window);
             let mut prev = Pyramid::new(&mut a, w, h, levels).unwrap();
             let mut cur = Pyramid::new(&mut b, w, h, levels).unwrap();
+            // the evaluation's outputs, one per frame processed
+            let mut next = 0;
             for (fi, f) in video.frames.iter().enumerate() {
                 let img = frames.load(video.id, f.index).unwrap();
                 cur.build(&rgb_to_gray(&img.view(), &mut gray).unwrap())
                     .unwrap();
-                let shown: Vec<Detection> =
-                    match pilot.decide(fi as u32, (fi > 0).then_some(&prev), &cur) {
-                        Decision::Detect { variant, .. } => {
-                            detections += 1;
-                            assert_eq!(
-                                run.detect[fi],
-                                Some(variant),
-                                "budget {k} video {} frame {fi}",
-                                video.id
-                            );
-                            let mut found: Vec<Detection> = f.detections[usize::from(variant)]
-                                .iter()
-                                .map(|d| d.detection())
-                                .collect();
-                            found.sort_by(|a, b| b.score.total_cmp(&a.score));
-                            let _ = pilot.detected(&cur, &found);
-                            let t_c = pilot.report_score();
-                            found.into_iter().filter(|d| d.score >= t_c).collect()
-                        }
-                        Decision::Track => {
-                            tracked += 1;
-                            assert_eq!(
-                                run.detect[fi], None,
-                                "budget {k} video {} frame {fi}",
-                                video.id
-                            );
-                            pilot.tracked().collect()
-                        }
-                    };
+                let decision = pilot.decide(fi as u32, (fi > 0).then_some(&prev), &cur);
+                if decision == Decision::Track && pilot.standing() {
+                    // left alone: the evaluation processed nothing either
+                    left_alone += 1;
+                    assert!(
+                        run.run.outputs.get(next).is_none_or(|o| o.frame != fi),
+                        "budget {k} video {} frame {fi}",
+                        video.id
+                    );
+                    std::mem::swap(&mut prev, &mut cur);
+                    continue;
+                }
+                let out = &run.run.outputs[next];
+                assert_eq!(out.frame, fi, "budget {k} video {}", video.id);
+                let detect = run.detect[next];
+                next += 1;
+                let shown: Vec<Detection> = match decision {
+                    Decision::Detect { variant, .. } => {
+                        detections += 1;
+                        assert_eq!(
+                            detect,
+                            Some(variant),
+                            "budget {k} video {} frame {fi}",
+                            video.id
+                        );
+                        let mut found: Vec<Detection> = f.detections[usize::from(variant)]
+                            .iter()
+                            .map(|d| d.detection())
+                            .collect();
+                        found.sort_by(|a, b| b.score.total_cmp(&a.score));
+                        let _ = pilot.detected(&cur, &found);
+                        let t_c = pilot.report_score();
+                        found.into_iter().filter(|d| d.score >= t_c).collect()
+                    }
+                    Decision::Track => {
+                        tracked += 1;
+                        assert_eq!(detect, None, "budget {k} video {} frame {fi}", video.id);
+                        pilot.tracked().collect()
+                    }
+                };
                 let key = |d: &Detection| {
                     (
                         d.class,
@@ -278,14 +300,15 @@ fn the_runtime_pilot_runs_the_budget_policy_as_the_evaluation() {
                     )
                 };
                 let mut mine: Vec<_> = shown.iter().map(key).collect();
-                let mut theirs: Vec<_> = run.run.outputs[fi].shown.iter().map(key).collect();
+                let mut theirs: Vec<_> = out.shown.iter().map(key).collect();
                 mine.sort_unstable();
                 theirs.sort_unstable();
                 assert_eq!(mine, theirs, "budget {k} video {} frame {fi}", video.id);
                 // the compute the evaluation charged, as the drone would measure it
-                pilot.spent(run.run.outputs[fi].device_ms as f32);
+                pilot.spent(out.device_ms as f32);
                 std::mem::swap(&mut prev, &mut cur);
             }
+            assert_eq!(next, run.run.outputs.len(), "video {}", video.id);
             postponed += pilot
                 .scheduler()
                 .and_then(|s| s.keeper())
@@ -294,8 +317,8 @@ fn the_runtime_pilot_runs_the_budget_policy_as_the_evaluation() {
         }
     }
     assert!(
-        detections > 0 && tracked > 0,
-        "both kinds of frame: {detections} / {tracked}"
+        detections > 0 && tracked > 0 && left_alone > 0,
+        "every kind of frame: {detections} / {tracked} / {left_alone}"
     );
     assert!(postponed > 0, "the budget keeper postponed no detection");
 }
@@ -601,6 +624,64 @@ fn static_detects_as_often_as_its_budget_allows_and_leaves_the_frames_between_al
     assert!(spaced > 0);
 }
 
+/// A budget table can hold static's schedule: every state on static's variant and
+/// period without the tracker streams exactly as static does, output for output, so
+/// the search can always start from static's schedule.
+#[test]
+fn a_table_of_static_s_untracked_action_streams_as_static() {
+    let (log, frames, mut pol) = trained();
+    pol.config.keep_window = 0; // static keeps no budget keeper
+    let a_n = pol.tracked_actions();
+    let statics: Vec<u16> = (pol.config.budgets_ms.iter())
+        .map(|&b| (a_n + pol.static_action(b)) as u16)
+        .collect();
+    for (p, a) in pol.policies.iter_mut().zip(statics) {
+        p.actions.iter_mut().for_each(|x| *x = a);
+    }
+    let (_, bytes) = bundled(&log, &pol);
+    let mut compared = 0;
+    for k in 0..pol.config.budgets_ms.len() {
+        for video in log.split(Split::Test) {
+            let cache = VideoCache::default();
+            let st = stream(
+                &log,
+                video,
+                &frames,
+                &pol,
+                k,
+                &bytes,
+                BudgetStrategy::Static,
+                1,
+                &cache,
+            );
+            let table = stream(
+                &log,
+                video,
+                &frames,
+                &pol,
+                k,
+                &bytes,
+                BudgetStrategy::Budget,
+                1,
+                &cache,
+            );
+            assert_eq!(st.detect, table.detect, "budget {k} video {}", video.id);
+            assert_eq!(st.run.outputs.len(), table.run.outputs.len());
+            for (a, b) in st.run.outputs.iter().zip(&table.run.outputs) {
+                assert_eq!(a.frame, b.frame);
+                assert_eq!(
+                    a.shown, b.shown,
+                    "budget {k} video {} frame {}",
+                    video.id, a.frame
+                );
+                assert!((a.device_ms - b.device_ms).abs() < 1e-12);
+                compared += 1;
+            }
+        }
+    }
+    assert!(compared > 0);
+}
+
 /// Clock run `r` streams every strategy from frame `r mod` the longest period, and
 /// that run is scored on the frames it streamed; with `phases` off every run starts on
 /// the first frame.
@@ -875,8 +956,13 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
     for (k, t) in traces.iter().enumerate() {
         let allowed = searched.allowed(pol.config.budgets_ms[k]);
         let choices = searched.choices(pol.config.budgets_ms[k]);
-        // the learnt table and one per allowed fixed action, at least
-        assert!(t.tables > allowed.len(), "{t:?}");
+        let table_choices = searched.table_choices(pol.config.budgets_ms[k]);
+        // every action with the tracker, and some without it (the variants over their
+        // periods within the burst)
+        assert!(choices.iter().all(|a| table_choices.contains(a)));
+        assert!(table_choices.iter().any(|&a| !searched.tracks(a)));
+        // the learnt table and one per fixed action a table may hold, at least
+        assert!(t.tables > table_choices.len(), "{t:?}");
         assert!(t.sap50 >= t.learnt_sap50 - 1e-12, "{t:?}");
         assert!(t.sap50 >= t.best_fixed_sap50 - 1e-12, "{t:?}");
         // the hindsight bound starts from the best fixed schedule and never loses to it
@@ -888,8 +974,10 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
                 "{t:?}"
             );
         }
-        // static + tracker keeps the budget on the clock, whatever its segment cost
+        // static + tracker keeps the budget on the clock, whatever its segment cost,
+        // and tracks
         assert!(choices.contains(&usize::from(t.best_fixed)), "{t:?}");
+        assert!(searched.tracks(usize::from(t.best_fixed)), "{t:?}");
         assert!(
             t.best_fixed_ms_per_frame <= pol.config.budgets_ms[k] + 1e-9
                 || t.best_fixed_ms_per_frame <= t.device_ms_per_frame + 1e-9,
@@ -897,7 +985,11 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
         );
         let p = &searched.policies[k];
         assert_eq!(p.search.as_ref(), Some(t));
-        assert!(p.actions.iter().all(|&a| choices.contains(&usize::from(a))));
+        assert!(
+            p.actions
+                .iter()
+                .all(|&a| table_choices.contains(&usize::from(a)))
+        );
         // the table keeps the budget on the tuning clock runs, whatever one action costs
         assert!(
             t.device_ms_per_frame <= pol.config.budgets_ms[k] + 1e-9
@@ -966,6 +1058,24 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
     for (t1, t0) in traces1.iter().zip(&traces0) {
         assert_eq!(t1.start, t0.start);
         assert!(t1.sap50 >= t0.sap50 - 1e-12, "{t1:?}");
+    }
+    // without the untracked actions every table tracks, as before format 7
+    let mut tracked = policy.clone();
+    let mut p2 = pol.clone();
+    p2.config.search_rounds = 1;
+    p2.config.untracked_actions = false;
+    tracked.budget = Some(p2);
+    search_tables(&sets, COST, &mut tracked, thresholds, 0.5, &|| {}).unwrap();
+    let tracked = tracked.budget.unwrap();
+    for (k, p) in tracked.policies.iter().enumerate() {
+        assert_eq!(
+            tracked.table_choices(p.budget_ms),
+            tracked.choices(p.budget_ms)
+        );
+        assert!(
+            p.actions.iter().all(|&a| tracked.tracks(usize::from(a))),
+            "budget {k}"
+        );
     }
 }
 

@@ -35,7 +35,7 @@
 //! | offset | size | type | field |
 //! |-------:|-----:|------|-------|
 //! | 0  | 4 | u32 | magic `0x4250_5246` — the bytes `"FRPB"`; the byte-swapped value (`"BPRF"`) means a big-endian writer: [`BundleError::WrongEndian`] |
-//! | 4  | 2 | u16 | format version, [`FORMAT_VERSION`] = 6 (the reader also takes 5, 4 and [`MIN_FORMAT_VERSION`] = 3) |
+//! | 4  | 2 | u16 | format version, [`FORMAT_VERSION`] = 7 (the reader also takes 6, 5, 4 and [`MIN_FORMAT_VERSION`] = 3) |
 //! | 6  | 2 | u16 | section count `n`, 1 ..= [`MAX_SECTIONS`] |
 //! | 8  | 4 | u32 | total file length in bytes (must equal the input length) |
 //! | 12 | 4 | u32 | CRC-32 (IEEE, as zlib) of the whole file with these 4 bytes taken as zero |
@@ -142,6 +142,14 @@
 //! bytes from version 6 on (36 before), and the section is exactly `H + 16 K + 2 K S`
 //! bytes.
 //!
+//! Version 7 has the bytes of version 6 and adds actions that leave the frames between
+//! two detections alone: an action `a` of a version-7 table (the initial one too) is
+//! `< 2 · V · P`; `a < V · P` is read as above and tracks the detection's boxes in
+//! between ([`ScheduleAction::track`]), and `a >= V · P` is the action `a − V · P` that
+//! starts no tracker, the detection's boxes standing until the next one. In a bundle of
+//! version 6 or older an action `>= V · P` is [`BundleError::BadScheduleAction`], and
+//! every action tracks.
+//!
 //! One file on purpose: the byte layout documented above and the zero-copy parser that
 //! checks every field of it are read side by side (the writer is `write.rs`).
 
@@ -162,7 +170,7 @@ pub const MAGIC: u32 = 0x4250_5246;
 /// the accesses per image, 3 the reference variant, 4 the schedules section, 5 the
 /// first detection read from the schedule table, 6 the frame interval the schedules
 /// count).
-pub const FORMAT_VERSION: u16 = 6;
+pub const FORMAT_VERSION: u16 = 7;
 /// The oldest format version the reader understands.
 pub const MIN_FORMAT_VERSION: u16 = 3;
 /// Header length in bytes.
@@ -586,6 +594,10 @@ pub struct Schedules<'a> {
     first_from_table: bool,
     /// Version 6 on: the frame interval the tables count, ms.
     frame_ms: Option<f32>,
+    /// Version 7 on: actions from `V · P` up leave the frames between detections alone.
+    untracked: bool,
+    /// `V · P`: the first code of an action that does not track.
+    tracked_codes: usize,
     /// `budget_count` records of [`BUDGET_RECORD`] bytes.
     budgets: &'a [u8],
     budget_count: usize,
@@ -665,12 +677,31 @@ impl<'a> Schedules<'a> {
         self.decode(rd_u16(self.tables, i.checked_mul(2)?)?)
     }
 
-    /// The action encoded as `a` (`variant · P + period index`).
+    /// True (format version 7 on) when the tables may hold actions that leave the
+    /// frames between detections alone ([`ScheduleAction::track`] false).
+    pub const fn has_untracked(&self) -> bool {
+        self.untracked
+    }
+
+    /// The action encoded as `a` (`variant · P + period index`, plus `V · P` for one
+    /// that does not track, version 7 on).
     fn decode(&self, a: u16) -> Option<ScheduleAction> {
         let p = self.period_count;
+        let tracked = self.tracked_codes;
+        let (a, track) = if usize::from(a) < tracked {
+            (a, true)
+        } else if self.untracked {
+            (
+                u16::try_from(usize::from(a).checked_sub(tracked)?).ok()?,
+                false,
+            )
+        } else {
+            return None;
+        };
         Some(ScheduleAction {
             variant: a.checked_div(p)?,
             period: *self.periods.get(usize::from(a.checked_rem(p)?))?,
+            track,
         })
     }
 }
@@ -1084,8 +1115,9 @@ fn parse_schedules(b: &[u8], variants: usize, version: u16) -> Result<Schedules<
         return Err(BundleError::BadSchedule);
     }
     let tables = b.get(budgets_end..).ok_or(BundleError::BadSectionLength)?;
-    // every action, and the initial one, below V · P
-    let limit = variants.saturating_mul(usize::from(period_count));
+    // every action, and the initial one, below V · P (2 · V · P from version 7 on)
+    let tracked_codes = variants.saturating_mul(usize::from(period_count));
+    let limit = tracked_codes.saturating_mul(if version >= 7 { 2 } else { 1 });
     let in_range = |a: u16| usize::from(a) < limit;
     if !in_range(initial)
         || tables
@@ -1098,12 +1130,11 @@ fn parse_schedules(b: &[u8], variants: usize, version: u16) -> Result<Schedules<
         edges,
         periods,
         period_count,
-        initial: ScheduleAction {
-            variant: 0,
-            period: 1,
-        },
+        initial: ScheduleAction::tracked(0, 1),
         first_from_table: version >= 5,
         frame_ms,
+        untracked: version >= 7,
+        tracked_codes,
         budgets,
         budget_count,
         tables,

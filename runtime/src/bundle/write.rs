@@ -407,7 +407,8 @@ fn schedules_body(spec: &ScheduleSpec, variants: usize) -> Result<Vec<u8>, Write
     if spec.budgets.iter().any(|b| b.actions.len() != states) {
         return Err(WriteError::BadScheduleLength);
     }
-    // an action is stored as variant · P + period index, which must fit a u16
+    // an action is stored as variant · P + period index, plus V · P when it does not
+    // track, which must fit a u16
     let encode = |a: &ScheduleAction| -> Result<u16, WriteError> {
         let period = periods
             .iter()
@@ -416,7 +417,8 @@ fn schedules_body(spec: &ScheduleSpec, variants: usize) -> Result<Vec<u8>, Write
         if usize::from(a.variant) >= variants {
             return Err(WriteError::BadScheduleAction);
         }
-        let code = usize::from(a.variant) * periods.len() + period;
+        let untracked = if a.track { 0 } else { variants * periods.len() };
+        let code = usize::from(a.variant) * periods.len() + period + untracked;
         u16::try_from(code).map_err(|_| WriteError::TooLarge)
     };
     let len16 = |n: usize| u16::try_from(n).map_err(|_| WriteError::TooLarge);

@@ -61,6 +61,7 @@ fn action_of(k: usize, i: usize) -> ScheduleAction {
     ScheduleAction {
         variant: ((i / CONTENT_STATES + k) % 3) as u16,
         period: PERIODS[(i * 7 + k) % 3],
+        track: true,
     }
 }
 
@@ -84,6 +85,7 @@ fn schedule_spec(budgets: usize) -> ScheduleSpec {
         initial: ScheduleAction {
             variant: 2,
             period: 3,
+            track: true,
         },
         frame_ms: 1e3 / 25.0,
         budgets: (0..budgets)
@@ -230,7 +232,7 @@ fn schedules_round_trip() {
     let bytes = scheduled_sample();
     let b = Bundle::parse(&bytes).unwrap();
     assert_eq!(b.version(), FORMAT_VERSION);
-    assert_eq!(FORMAT_VERSION, 6);
+    assert_eq!(FORMAT_VERSION, 7);
     let s = b.schedules().expect("schedules");
     assert_eq!(s.frame_ms(), Some(40.0));
     assert_eq!(
@@ -249,7 +251,8 @@ fn schedules_round_trip() {
         s.initial(),
         ScheduleAction {
             variant: 2,
-            period: 3
+            period: 3,
+            track: true,
         }
     );
     assert_eq!(s.budget_count(), 2);
@@ -349,6 +352,52 @@ fn a_version_5_bundle_is_read_and_never_misread() {
     assert!(Bundle::parse(&relabelled).is_err());
 }
 
+/// Version 7 adds actions that leave the frames between detections alone: written and
+/// read back as they were meant, the initial action too; in a bundle of version 6 such
+/// a code is an error, never read as another action, and a version-6 bundle's actions
+/// all track.
+#[test]
+fn untracked_actions_are_read_from_version_7_on_and_rejected_before() {
+    let mut spec = schedule_spec(2);
+    for (k, b) in spec.budgets.iter_mut().enumerate() {
+        for (i, a) in b.actions.iter_mut().enumerate() {
+            a.track = (i + k) % 3 != 0;
+        }
+    }
+    spec.initial.track = false;
+    let bytes = writer().schedules(spec.clone()).finish().unwrap();
+    let b = Bundle::parse(&bytes).unwrap();
+    let s = b.schedules().unwrap();
+    assert!(s.has_untracked());
+    assert_eq!(s.initial(), spec.initial);
+    for (k, budget) in spec.budgets.iter().enumerate() {
+        for (i, a) in budget.actions.iter().enumerate() {
+            assert_eq!(s.action(k, i), Some(*a), "budget {k} state {i}");
+        }
+    }
+    assert!(s.action(0, 0).is_some_and(|a| !a.track));
+    assert!(s.action(0, 1).is_some_and(|a| a.track));
+    exercise(&b);
+    assert_eq!(
+        Bundle::parse(&with_version(&bytes, 6)).unwrap_err(),
+        BundleError::BadScheduleAction
+    );
+    // an all-tracked bundle called 6 reads the same, every action tracking
+    let tracked = scheduled_sample();
+    let (s7, s6) = (
+        Bundle::parse(&tracked).unwrap().schedules().unwrap(),
+        with_version(&tracked, 6),
+    );
+    let s6 = Bundle::parse(&s6).unwrap().schedules().unwrap();
+    assert!(!s6.has_untracked());
+    for k in 0..s7.budget_count() {
+        for i in 0..s7.state_count() {
+            assert_eq!(s6.action(k, i), s7.action(k, i));
+            assert!(s6.action(k, i).is_some_and(|a| a.track));
+        }
+    }
+}
+
 #[test]
 fn a_version_3_bundle_is_read_and_never_misread() {
     assert_eq!(MIN_FORMAT_VERSION, 3);
@@ -366,7 +415,7 @@ fn a_version_3_bundle_is_read_and_never_misread() {
     assert!(b.schedules().is_none());
     exercise(&b);
     // versions the reader does not know, old or new
-    for version in [0, 1, 2, 7, u16::MAX] {
+    for version in [0, 1, 2, 8, u16::MAX] {
         assert_eq!(
             Bundle::parse(&with_version(&scheduled_sample(), version)).unwrap_err(),
             BundleError::UnsupportedVersion,
@@ -461,9 +510,9 @@ fn schedule_errors_behind_valid_checksums() {
         ("a period past P", 30, u16le(9).to_vec(), BadSchedule),
         ("0 budgets", 32, u16le(0).to_vec(), BadSchedule),
         (
-            "initial action = V P",
+            "initial action = 2 V P",
             34,
-            u16le(9).to_vec(),
+            u16le(18).to_vec(),
             BadScheduleAction,
         ),
         ("frame interval 0 ms", 36, f32le(0.0).to_vec(), BadSchedule),
@@ -494,9 +543,9 @@ fn schedule_errors_behind_valid_checksums() {
             BadSchedule,
         ),
         (
-            "an action = V P",
+            "an action = 2 V P",
             40 + 32,
-            u16le(9).to_vec(),
+            u16le(18).to_vec(),
             BadScheduleAction,
         ),
         (
@@ -513,18 +562,21 @@ fn schedule_errors_behind_valid_checksums() {
     assert_eq!(patched(32, &u16le(9)), BadSchedule);
     // fewer periods: the unused slot must be 0
     assert_eq!(patched(6, &u16le(2)), BadSchedule);
-    // the largest action is fine
-    let mut ok = bytes.clone();
-    ok[body + 72..body + 74].copy_from_slice(&u16le(8));
-    fix_checksums(&mut ok);
-    let b = Bundle::parse(&ok).unwrap();
-    assert_eq!(
-        b.schedules().unwrap().action(0, 0),
-        Some(ScheduleAction {
-            variant: 2,
-            period: 8
-        })
-    );
+    // the largest tracked action, and the largest action, are fine
+    for (code, track) in [(8, true), (17, false)] {
+        let mut ok = bytes.clone();
+        ok[body + 72..body + 74].copy_from_slice(&u16le(code));
+        fix_checksums(&mut ok);
+        let b = Bundle::parse(&ok).unwrap();
+        assert_eq!(
+            b.schedules().unwrap().action(0, 0),
+            Some(ScheduleAction {
+                variant: 2,
+                period: 8,
+                track,
+            })
+        );
+    }
     // the section twice
     let mut dup = bytes.clone();
     let e5 = HEADER_LEN + 4 * SECTION_ENTRY_LEN;

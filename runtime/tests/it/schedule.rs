@@ -27,7 +27,7 @@ const CNN: ScoreBuckets = ScoreBuckets {
 };
 
 const fn act(variant: u16, period: u32) -> ScheduleAction {
-    ScheduleAction { variant, period }
+    ScheduleAction::tracked(variant, period)
 }
 
 fn info(budget_ms: f32) -> BudgetInfo {
@@ -862,4 +862,112 @@ fn the_frame_clock_numbers_a_camera_on_the_tables_clock() {
     assert_eq!(c.frame(f64::NAN), None);
     assert_eq!(c.frame(-80.0), Some(0));
     assert_eq!(c.frame(0.0), Some(2));
+}
+
+/// An action that does not track starts no tracker: the detection's boxes stand, as
+/// found, until the next detection, those frames are left alone (the scheduler's
+/// content is not updated) and no pyramid is read; the next action that tracks starts
+/// the trackers again, and the boxes follow the sign.
+#[test]
+fn an_untracked_action_leaves_the_frames_between_alone_and_reads_no_pyramid() {
+    let untracked = |variant, period| ScheduleAction {
+        track: false,
+        ..act(variant, period)
+    };
+    // optimal: track every 4; anything else (the first frame's miss too): every 4,
+    // untracked
+    let table = states(2)
+        .map(|(b, _, _)| match b {
+            Bucket::Optimal => act(0, 4),
+            _ => untracked(0, 4),
+        })
+        .collect();
+    let bytes = base()
+        .schedules(ScheduleSpec {
+            edges: ContentEdges::DEFAULT,
+            periods: vec![1, 4],
+            initial: act(0, 4),
+            frame_ms: 1e3 / 30.0,
+            budgets: vec![BudgetSpec {
+                info: info(20.0),
+                actions: table,
+            }],
+        })
+        .finish()
+        .unwrap();
+    let spec = ClipSpec {
+        width: 160,
+        height: 120,
+        sign_size: 40.0,
+        growth: 1.0,
+        velocity: (2.0, 0.0),
+        shake: 0.0,
+        ..ClipSpec::standard(3, 12)
+    };
+    let clip = make_clip(&spec);
+    let (w, h) = (clip.width, clip.height);
+    let need = Pyramid::required_len(w, h, 3).unwrap();
+    let (mut a, mut b) = (vec![0u8; need], vec![0u8; need]);
+    let mut pilot: Pilot<'_, 4, 48> = Pilot::scheduled(Bundle::parse(&bytes).unwrap(), 0).unwrap();
+    let mut prev = Pyramid::new(&mut a, w, h, 3).unwrap();
+    let mut cur = Pyramid::new(&mut b, w, h, 3).unwrap();
+    let mut built_prev = false;
+    let blank = vec![0u8; w * h];
+    // frame 0 scores optimal (the next detection tracks), frame 4 good enough (the
+    // next does not)
+    let scores = [0.95, 0.7, 0.95];
+    let mut last_found = None;
+    for i in 0..12 {
+        let build = |p: &mut Pyramid<'_>| {
+            p.build(&GrayImage::new(&clip.frames[i], w, h, w).unwrap())
+                .unwrap();
+        };
+        // a pyramid only where the pilot reads one: a blank one otherwise
+        cur.build(&GrayImage::new(&blank, w, h, w).unwrap())
+            .unwrap();
+        let mut built = pilot.tracks_between();
+        if built {
+            build(&mut cur);
+        }
+        let before = pilot.scheduler().unwrap().content();
+        let decision = pilot.decide(i as u32, built_prev.then_some(&prev), &cur);
+        match decision {
+            Decision::Detect { .. } => {
+                assert_eq!(i % 4, 0, "frame {i}");
+                if pilot.tracks_between() && !built {
+                    build(&mut cur);
+                    built = true;
+                }
+                let found = [Detection {
+                    bbox: clip.boxes[i],
+                    score: scores[i / 4],
+                    class: 2,
+                }];
+                assert_eq!(pilot.detected(&cur, &found), Access::Done);
+                assert_eq!(pilot.standing(), i != 4, "frame {i}");
+                assert_eq!(pilot.tracks_between(), i == 4, "frame {i}");
+                last_found = Some(clip.boxes[i]);
+            }
+            Decision::Track => {
+                let boxes: Vec<BBox> = pilot.tracked().map(|d| d.bbox).collect();
+                assert_eq!(boxes.len(), 1, "frame {i}");
+                if (5..8).contains(&i) {
+                    // tracked: the box follows the sign, 2 px per frame
+                    assert!(!pilot.standing());
+                    assert!((boxes[0].x1 - clip.boxes[i].x1).abs() < 1.0, "frame {i}");
+                    assert!(boxes[0] != last_found.unwrap());
+                } else {
+                    // left alone: the detection's box, as found; nothing shown
+                    assert!(pilot.standing());
+                    assert_eq!(Some(boxes[0]), last_found, "frame {i}");
+                    assert_eq!(pilot.scheduler().unwrap().content(), before);
+                }
+            }
+        }
+        built_prev = built;
+        std::mem::swap(&mut prev, &mut cur);
+    }
+    // one tracker started: on frame 4's detection, under the one action that tracks
+    assert_eq!(pilot.track_stats().started, 1);
+    assert_eq!(pilot.stats().detections, 3);
 }
