@@ -214,10 +214,11 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
     pb.finish_and_clear();
     for (b, t) in cfg.budgets_ms.iter().zip(&traces) {
         println!(
-            "budget {b} ms on the tuning clock ({} videos): learnt table sAP@0.5 {:.1}, best fixed schedule {:.1}, hindsight bound {:.1}; started from {}, {} move(s) kept over {} tables: {:.1} (halves {:.1} / {:.1}), {:.2} device ms/frame",
+            "budget {b} ms on the tuning clock ({} videos): learnt table sAP@0.5 {:.1}, best fixed schedule {:.1}, best untracked schedule (static) {:.1}, hindsight bound {:.1}; started from {}, {} move(s) kept over {} tables: {:.1} (halves {:.1} / {:.1}), {:.2} device ms/frame",
             sets.iter().map(|s| s.videos.len()).sum::<usize>(),
             100.0 * t.learnt_sap50,
             100.0 * t.best_fixed_sap50,
+            100.0 * t.best_static_sap50,
             100.0 * t.hindsight_sap50,
             t.start,
             t.changes,

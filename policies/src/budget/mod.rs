@@ -589,13 +589,25 @@ impl BudgetPolicies {
             .unwrap_or(0)
     }
 
-    /// Static's fixed action under `budget_ms`, without the tracker: the best static
-    /// variant under the budget ([`BudgetPolicies::static_under`]) at the shortest
-    /// period whose detections alone keep the budget (its device ms over the period;
-    /// the longest period when none does). Every frame when the variant fits the
-    /// budget; when none does, the frames between two detections are left alone and
-    /// their output is the last detection's.
+    /// Static's fixed action under `budget_ms`, without the tracker (as the tracked
+    /// action of the same variant and period; the frames between two detections are
+    /// left alone and their output is the last detection's): the schedule without the
+    /// tracker that streamed best on the tuning videos while keeping the budget there,
+    /// when the search on the clock ran
+    /// ([`crate::budget_eval::SearchTrace::best_static`]); else the best static variant
+    /// under the budget ([`BudgetPolicies::static_under`]) at the shortest period whose
+    /// detections alone keep the budget (its device ms over the period; the longest
+    /// period when none does), every frame when the variant fits the budget.
     pub fn static_action(&self, budget_ms: f64) -> usize {
+        let searched = self
+            .policies
+            .iter()
+            .find(|p| p.budget_ms == budget_ms)
+            .and_then(|p| p.search.as_ref())
+            .and_then(|t| t.best_static);
+        if let Some(a) = searched {
+            return usize::from(a);
+        }
         let v = self.static_under(budget_ms);
         let periods = &self.config.periods;
         let i = periods

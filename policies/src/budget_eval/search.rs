@@ -71,6 +71,20 @@ pub struct SearchTrace {
     /// Its device ms per frame, same runs.
     #[serde(default)]
     pub best_fixed_ms_per_frame: f64,
+    /// The fixed (variant, every `N`) schedule without the tracker (as the action with
+    /// the tracker of the same variant and period) that streams best on the tuning
+    /// videos while keeping the budget there, without the budget keeper, of those whose
+    /// detections over the period fit the burst: static's schedule
+    /// ([`crate::budget::BudgetPolicies::static_action`]). `None` in policies searched
+    /// before it was kept.
+    #[serde(default)]
+    pub best_static: Option<u16>,
+    /// Its sAP@0.5, same runs.
+    #[serde(default)]
+    pub best_static_sap50: f64,
+    /// Its device ms per frame, same runs.
+    #[serde(default)]
+    pub best_static_ms_per_frame: f64,
     /// sAP@0.5 of the hindsight bound on the same runs ([`super::hindsight`]): per
     /// tuning video, the fixed schedule within the burst chosen knowing its truth, the
     /// choices together keeping the budget; streamed as static + tracker is (without
@@ -328,6 +342,12 @@ pub fn search_tables(
         // hindsight bound's choices) and, when allowed, without it
         let choices = pol.table_choices(budget);
         let tracked: Vec<usize> = choices.iter().copied().filter(|&a| pol.tracks(a)).collect();
+        // static's candidates: every schedule without the tracker within the burst,
+        // whether or not a table may hold one
+        let a_n = pol.tracked_actions();
+        let untracked: Vec<usize> = (a_n..2 * a_n)
+            .filter(|&a| pol.cost_ms(a) <= cfg.burst * budget)
+            .collect();
         let states = pol.policies[k].actions.len();
         let v_n = pol.variants.len();
         let mut tables = 0usize;
@@ -378,11 +398,33 @@ pub fn search_tables(
         // (the bound's)
         let mut tallies: Vec<Vec<Tally>> =
             vec![Vec::with_capacity(tracked.len()); clock.videos.len()];
+        let mut best_static: Option<(u16, Figures)> = None;
+        for &a in untracked.iter().filter(|a| !choices.contains(a)) {
+            // static's candidate only, judged without the keeper as static runs
+            let table = vec![a as u16; states];
+            let bare = bare.as_mut().unwrap_or(&mut *policy);
+            let (_, fig) = full(bare, &table)?;
+            if best_static
+                .as_ref()
+                .is_none_or(|(_, f)| better_start(&fig, f, budget))
+            {
+                best_static = Some(((a - a_n) as u16, fig));
+            }
+        }
         for (&a, name) in choices.iter().zip(names) {
             let table = vec![a as u16; states];
             let (runs, fig) = full(policy, &table)?;
             if !tracked.contains(&a) {
-                // a start, but neither static + tracker's schedule nor the bound's
+                // static's candidate, judged without the keeper
+                let bare_full = bare.as_mut().map(|b| full(b, &table)).transpose()?;
+                let static_fig = bare_full.as_ref().map_or(&fig, |(_, f)| f);
+                if best_static
+                    .as_ref()
+                    .is_none_or(|(_, f)| better_start(static_fig, f, budget))
+                {
+                    best_static = Some(((a - a_n) as u16, static_fig.clone()));
+                }
+                // and a start, but neither static + tracker's schedule nor the bound's
                 if better_start(&fig, &best.3, budget) {
                     best = (name, table, runs, fig);
                 }
@@ -514,6 +556,9 @@ pub fn search_tables(
             best_fixed,
             best_fixed_sap50: best_fixed_fig.sap50,
             best_fixed_ms_per_frame: best_fixed_fig.ms_per_frame,
+            best_static: best_static.as_ref().map(|(a, _)| *a),
+            best_static_sap50: best_static.as_ref().map_or(0.0, |(_, f)| f.sap50),
+            best_static_ms_per_frame: best_static.as_ref().map_or(0.0, |(_, f)| f.ms_per_frame),
             hindsight_sap50: bound.sap50,
             hindsight_ms_per_frame: bound.ms_per_frame,
             sap50: fig.sap50,

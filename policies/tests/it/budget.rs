@@ -999,6 +999,17 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
             "{t:?}"
         );
         assert_eq!(searched.static_tracker(k), usize::from(t.best_fixed));
+        // static runs the best untracked schedule of the tuning videos, which keeps
+        // the budget there when one does; every table's start is no worse
+        let st = usize::from(t.best_static.expect("static's schedule chosen"));
+        assert_eq!(searched.static_action(pol.config.budgets_ms[k]), st);
+        assert!(table_choices.contains(&(st + searched.tracked_actions())));
+        if searched.cost_ms(st + searched.tracked_actions()) <= pol.config.budgets_ms[k] {
+            assert!(
+                t.best_static_ms_per_frame <= pol.config.budgets_ms[k] + 1e-9,
+                "{t:?}"
+            );
+        }
     }
     // the figures are the evaluation's, streamed on the training videos
     let bytes = frugal_policies::bundle::policy_bundle(&policy, thresholds).unwrap();
