@@ -1,8 +1,12 @@
 //! Choosing each budget's table on the clock: the learnt table and every fixed
-//! schedule within the burst are streamed on the tuning videos exactly as the
-//! evaluation streams the test videos, the best by streaming AP that keeps the budget
-//! there is kept, and then one content state's action at a time is changed (most
-//! looked-up first) while that pays on both halves of the tuning videos.
+//! schedule within the burst, with the tracker and (with
+//! [`BudgetConfig::untracked_actions`]) without it, are streamed on the tuning videos
+//! exactly as the evaluation streams the test videos, the best by streaming AP that
+//! keeps the budget there is kept, and then one content state's action at a time is
+//! changed (most looked-up first) while that pays on both halves of the tuning videos.
+//! The best fixed schedule with the tracker is static + tracker's
+//! ([`SearchTrace::best_fixed`]), the best without it static's
+//! ([`SearchTrace::best_static`]), both judged without the budget keeper.
 //!
 //! # Cost on the clock
 //!
@@ -404,12 +408,7 @@ pub fn search_tables(
             let table = vec![a as u16; states];
             let bare = bare.as_mut().unwrap_or(&mut *policy);
             let (_, fig) = full(bare, &table)?;
-            if best_static
-                .as_ref()
-                .is_none_or(|(_, f)| better_start(&fig, f, budget))
-            {
-                best_static = Some(((a - a_n) as u16, fig));
-            }
+            keep_better(&mut best_static, (a - a_n) as u16, &fig, budget);
         }
         for (&a, name) in choices.iter().zip(names) {
             let table = vec![a as u16; states];
@@ -418,12 +417,7 @@ pub fn search_tables(
                 // static's candidate, judged without the keeper
                 let bare_full = bare.as_mut().map(|b| full(b, &table)).transpose()?;
                 let static_fig = bare_full.as_ref().map_or(&fig, |(_, f)| f);
-                if best_static
-                    .as_ref()
-                    .is_none_or(|(_, f)| better_start(static_fig, f, budget))
-                {
-                    best_static = Some(((a - a_n) as u16, static_fig.clone()));
-                }
+                keep_better(&mut best_static, (a - a_n) as u16, static_fig, budget);
                 // and a start, but neither static + tracker's schedule nor the bound's
                 if better_start(&fig, &best.3, budget) {
                     best = (name, table, runs, fig);
@@ -439,12 +433,7 @@ pub fn search_tables(
                 }
                 t.push(pooled);
             }
-            if best_fixed
-                .as_ref()
-                .is_none_or(|(_, f)| better_start(fixed_fig, f, budget))
-            {
-                best_fixed = Some((a as u16, fixed_fig.clone()));
-            }
+            keep_better(&mut best_fixed, a as u16, fixed_fig, budget);
             if better_start(&fig, &best.3, budget) {
                 best = (name, table, runs, fig);
             }
@@ -596,6 +585,17 @@ fn move_groups(level: SearchLevel, states: usize, variants: usize) -> Vec<Vec<us
             (0..CONTENT_STATES).map(content).chain(fine).collect()
         }
         SearchLevel::State => (0..states).map(|s| vec![s]).collect(),
+    }
+}
+
+/// Keeps fixed action `a` in `best` when its figures `fig` make a better start
+/// ([`better_start`]) than those kept, or nothing is kept yet.
+fn keep_better(best: &mut Option<(u16, Figures)>, a: u16, fig: &Figures, budget: f64) {
+    if best
+        .as_ref()
+        .is_none_or(|(_, f)| better_start(fig, f, budget))
+    {
+        *best = Some((a, fig.clone()));
     }
 }
 

@@ -469,6 +469,20 @@ fn a_bundle_without_schedules_has_no_scheduler() {
     assert!(e.to_string().contains("no schedules"));
 }
 
+/// A 160×120 clip of `frames` frames whose 40 px sign moves `speed` px per frame to
+/// the right, without shake.
+fn steady_clip(frames: usize, speed: f32) -> ClipSpec {
+    ClipSpec {
+        width: 160,
+        height: 120,
+        sign_size: 40.0,
+        growth: 1.0,
+        velocity: (speed, 0.0),
+        shake: 0.0,
+        ..ClipSpec::standard(3, frames)
+    }
+}
+
 /// Flies a scheduled pilot over a textured clip whose sign the "detector" always
 /// finds, moving `speed` px per frame; `cut` frames have no previous pyramid. Returns
 /// each frame's decision and the scheduler's content state after it.
@@ -478,15 +492,7 @@ fn fly_scheduled(
     cut: &[usize],
     speed: f32,
 ) -> (Vec<Decision>, Vec<Content>) {
-    let spec = ClipSpec {
-        width: 160,
-        height: 120,
-        sign_size: 40.0,
-        growth: 1.0,
-        velocity: (speed, 0.0),
-        shake: 0.0,
-        ..ClipSpec::standard(3, frames)
-    };
+    let spec = steady_clip(frames, speed);
     let clip = make_clip(&spec);
     let (w, h) = (clip.width, clip.height);
     let need = Pyramid::required_len(w, h, 3).unwrap();
@@ -895,15 +901,7 @@ fn an_untracked_action_leaves_the_frames_between_alone_and_reads_no_pyramid() {
         })
         .finish()
         .unwrap();
-    let spec = ClipSpec {
-        width: 160,
-        height: 120,
-        sign_size: 40.0,
-        growth: 1.0,
-        velocity: (2.0, 0.0),
-        shake: 0.0,
-        ..ClipSpec::standard(3, 12)
-    };
+    let spec = steady_clip(12, 2.0);
     let clip = make_clip(&spec);
     let (w, h) = (clip.width, clip.height);
     let need = Pyramid::required_len(w, h, 3).unwrap();
