@@ -3,12 +3,12 @@
 //!
 //! Same variants, same videos, same clock for every strategy, at every budget:
 //!
-//! 1. `static`: the best static variant under the budget (the most accurate, detecting
-//!    every frame on the training videos, whose detection fits the budget; the
-//!    cheapest when none does), without the tracker, detecting every frame when it
-//!    fits and otherwise every `N` frames, the shortest period that keeps the budget,
-//!    the last detection's boxes standing in between
-//!    ([`BudgetPolicies::static_action`]); `static+tracker`: the fixed
+//! 1. `static`: the fixed (variant, every `N`) schedule without the tracker that
+//!    streams best on the tuning videos while keeping the budget there, the last
+//!    detection's boxes standing in between ([`BudgetPolicies::static_action`];
+//!    without the search, the most accurate variant whose detection fits the budget,
+//!    every frame, and when none does the cheapest at the shortest period that keeps
+//!    the budget); `static+tracker`: the fixed
 //!    (variant, every `N`) schedule that streams best on the tuning videos while keeping
 //!    the budget there, in device ms per frame on the clock ([`search_tables`]; without
 //!    the search, the best static variant at the shortest `N` whose segment cost fits);
@@ -57,8 +57,8 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum BudgetStrategy {
-    /// The best static variant under the budget, without the tracker, at the shortest
-    /// period that keeps the budget (every frame when it fits).
+    /// The fixed schedule without the tracker that streams best on the tuning videos
+    /// while keeping the budget ([`BudgetPolicies::static_action`]).
     Static,
     /// The fixed (variant, every `N`) schedule, with the tracker, that streams best on
     /// the training videos.
