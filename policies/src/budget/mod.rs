@@ -7,7 +7,7 @@
 //! - **State**: the paper's (confidence bucket of the last detection, current variant)
 //!   plus the content the runtime has for free ([`Content`]: the size bucket of the
 //!   largest box shown, the motion bucket of its centre, the object-count bucket);
-//!   numbered as the runtime's [`state_index`].
+//!   numbered as the runtime's [`frugal_runtime::schedule::state_index`].
 //! - **Action**: (variant, detect-every-`N`), `N` from [`BudgetConfig::periods`] (as
 //!   ApproxDet's "sampling interval"): detect with the variant, carry every reported
 //!   box with the KLT tracker for up to `N − 1` frames (a lost track ends the segment
@@ -391,7 +391,9 @@ pub struct BudgetPolicy {
     pub p95_ms: f64,
     /// Mean per-frame F1 of its rollouts on the training videos.
     pub train_f1: f64,
-    /// Action per state ([`state_index`] order): `variant · P + period index`.
+    /// Action per state ([`frugal_runtime::schedule::state_index`] order): `variant · P +
+    /// period index`, plus `V · P` for an action without the tracker
+    /// ([`BudgetPolicies::tracked_actions`]).
     pub actions: Vec<u16>,
     /// What the search on the clock did ([`crate::budget_eval::search_tables`]);
     /// `None` when the table is the learnt one, unsearched. After the search,

@@ -27,7 +27,7 @@
 //!    truth), detecting every frame;
 //! 7. `hindsight`: per video, the fixed (variant, every `N`) schedule with the tracker
 //!    chosen knowing the videos' truth, the choices together keeping the budget
-//!    ([`hindsight`]): how much choosing the right schedule per video could gain over
+//!    (module `hindsight`): how much choosing the right schedule per video could gain over
 //!    static + tracker on these videos.
 //!
 //! The paper's MDP also keeps its offline (clock-free) evaluation in [`crate::eval`].
@@ -74,7 +74,7 @@ pub enum BudgetStrategy {
     /// The per-frame oracle.
     Oracle,
     /// Per video, the fixed schedule chosen knowing the truth, keeping the budget over
-    /// all videos ([`hindsight`]).
+    /// all videos (module `hindsight`).
     Hindsight,
 }
 

@@ -89,7 +89,7 @@ pub struct SearchTrace {
     /// Its device ms per frame, same runs.
     #[serde(default)]
     pub best_static_ms_per_frame: f64,
-    /// sAP@0.5 of the hindsight bound on the same runs ([`super::hindsight`]): per
+    /// sAP@0.5 of the hindsight bound on the same runs (module `budget_eval::hindsight`): per
     /// tuning video, the fixed schedule within the burst chosen knowing its truth, the
     /// choices together keeping the budget; streamed as static + tracker is (without
     /// the keeper). How much a table could gain here by choosing per video.
@@ -278,7 +278,7 @@ fn no_tables() -> PolicyError {
 
 /// Chooses and refines every budget's table of `policy` on the clock, streamed on the
 /// videos of `sets` (the policy's training videos, and any tuning set) as the
-/// evaluation streams the test videos ([module docs](self)); updates each [`crate::budget::BudgetPolicy`]'s table and its
+/// evaluation streams the test videos (see the module docs); updates each [`crate::budget::BudgetPolicy`]'s table and its
 /// training figures, and returns what the search did per budget. `progress` is called
 /// once per table streamed. With [`BudgetConfig::search_rounds`] 0 only the start is
 /// chosen (the learnt table or a fixed schedule, whichever streams best).

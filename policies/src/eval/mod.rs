@@ -1,7 +1,7 @@
 //! Replay evaluation of the paper's strategies on held-out videos
 //! (`frugal policy eval`).
 //!
-//! Every strategy runs the runtime's [`Controller`] over a bundle built with the
+//! Every strategy runs the runtime's [`frugal_runtime::Controller`] over a bundle built with the
 //! runtime's writer, so what is evaluated is what flies:
 //!
 //! 1. [`Strategy::Static`]: the most accurate variant (by F1 on the training videos)
