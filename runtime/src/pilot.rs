@@ -161,8 +161,6 @@ pub struct Pilot<'b, const TRACKS: usize, const POINTS: usize> {
     carry: Carry,
     /// A reported detection of the last detection frame has no tracker.
     untracked: bool,
-    /// The held boxes are the last detection's, standing: its action does not track.
-    standing: bool,
     stats: TrackStats,
 }
 
@@ -200,7 +198,6 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
             limit: TRACKS,
             carry,
             untracked: false,
-            standing: false,
             stats: TrackStats {
                 started: 0,
                 not_carried: 0,
@@ -317,7 +314,7 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
     /// action does not track ([`Scheduler::tracks`]), so until the next detection the
     /// frames are left alone and [`Pilot::tracked`] gives those boxes as they were found.
     pub const fn standing(&self) -> bool {
-        self.standing
+        !self.tracks_between()
     }
 
     /// Whether the pilot tracks between detections under its current action: always
@@ -352,7 +349,7 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
         let held_before = self.active > 0;
         let mut status: Option<TrackStatus> = None;
         let due = match &self.engine {
-            Engine::Scheduler(s) => s.due(frame) || self.standing,
+            Engine::Scheduler(s) => s.due(frame) || !s.tracks(),
             Engine::Controller(_) => false,
         };
         if let (Some(prev), false) = (prev, due) {
@@ -398,7 +395,8 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
             Engine::Scheduler(s) => {
                 // without `prev` the held boxes could not follow into this frame (on
                 // a due frame they were not tracked: the step detects anyway)
-                let track = if self.standing {
+                let standing = !s.tracks();
+                let track = if standing {
                     TrackState::Idle
                 } else if due || (prev.is_some() && self.active > 0) {
                     TrackState::Held
@@ -408,7 +406,7 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
                     TrackState::Idle
                 };
                 let decision = s.step(frame, track);
-                if decision == Decision::Track && !self.standing {
+                if decision == Decision::Track && !standing {
                     let held = self.held.iter().take(self.active);
                     s.shown(
                         frame,
@@ -455,7 +453,8 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
     pub fn detected(&mut self, cur: &Pyramid<'_>, detections: &[Detection]) -> Access {
         self.active = 0;
         self.untracked = false;
-        self.standing = !self.tracks_between();
+        // the action the detection just adopted says whether its boxes are tracked
+        let standing = self.standing();
         let t_c = self.report_score();
         let carry = self.track_score();
         for d in detections
@@ -466,7 +465,7 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
             let Some(h) = self.held.get_mut(self.active) else {
                 break;
             };
-            if self.standing {
+            if standing {
                 h.tracker.reset();
                 h.detection = *d;
                 self.active += 1;
@@ -527,7 +526,7 @@ impl<'b, const TRACKS: usize, const POINTS: usize> Pilot<'b, TRACKS, POINTS> {
     /// The tracked boxes, with the class and score of the detection each started from
     /// (the standing boxes as they were found, [`Pilot::standing`]).
     pub fn tracked(&self) -> impl Iterator<Item = Detection> + '_ {
-        let standing = self.standing;
+        let standing = self.standing();
         self.held.iter().take(self.active).map(move |h| Detection {
             bbox: if standing {
                 h.detection.bbox
