@@ -120,6 +120,7 @@ pub fn collect(run: &Path) -> Figures {
                     s["sap50"].as_f64().map(|x| format!("{:.1}", 100.0 * x)),
                 );
                 put(format!("{k}.f1"), f(&s["f1"], 3));
+                put(format!("{k}.sf1"), f(&s["sf1"], 3));
                 put(format!("{k}.speedup"), f(&s["speedup_vs_static"], 2));
                 put(format!("{k}.ms"), f(&s["timing"]["device_ms_per_frame"], 1));
             }

@@ -220,7 +220,7 @@ impl Clock<'_> {
             .zip(&runs)
             .flat_map(|((_, v, _, _), rs)| rs.iter().map(move |(_, r)| (*v, r)))
             .collect();
-        Ok(score_runs(self.classes, &pairs, fps, self.iou, self.forecast).2)
+        Ok(score_runs(self.classes, &pairs, fps, self.iou, self.forecast).f1)
     }
 
     fn run_fig(&self, v: &VideoLog, arr: &[f64], r: &BudgetRun) -> RunFig {
