@@ -1,15 +1,17 @@
 //! The hindsight bound (`hindsight`): per video, one fixed (variant, every `N`)
-//! schedule with the tracker, chosen knowing the scored videos' own truth, the choices
-//! together keeping the budget in device ms per frame over all the videos. No drone can
-//! run it. It says how much a scheduler that picks the right schedule for each video
-//! could gain over the best fixed schedule on these videos: when the bound itself leads
-//! static + tracker by little, so must any policy that adapts per video, however good
-//! its state.
+//! schedule of those a budget table may hold (with the tracker and, with
+//! [`crate::budget::BudgetConfig::untracked_actions`], without it), chosen knowing the
+//! scored videos' own truth, the choices together keeping the budget in device ms per
+//! frame over all the videos. No drone can run it. It says how much a scheduler that
+//! picks the right schedule for each video could gain over the best fixed schedule on
+//! these videos: when the bound itself leads static and static + tracker by little, so
+//! must any policy that adapts per video, however good its state.
 //!
-//! The choice is a coordinate ascent on pooled sAP@0.5: from static + tracker's
-//! schedule on every video, each video in turn takes the schedule (of those within the
-//! budget's burst, [`crate::budget::BudgetPolicies::choices`]) that makes the best
-//! start ([`super::search`]'s rule: within the budget first, then the higher pooled
+//! The choice is a coordinate ascent on pooled sAP@0.5: from the better of the given
+//! starts (static's and static + tracker's schedules) run on every video, each video in
+//! turn takes the schedule (of those a table may hold within the budget's burst,
+//! [`crate::budget::BudgetPolicies::table_choices`]) that makes the best start
+//! ([`super::search`]'s rule: within the budget first, then the higher pooled
 //! sAP@0.5), in sweeps until none changes (at most [`SWEEPS`]). An ascent finds a good
 //! choice, not always the best one, so the bound it gives is a lower bound on the best
 //! per-video choice; and a policy that changes schedule within a video is not bounded by
@@ -34,17 +36,34 @@ fn figures(classes: usize, tallies: &[Vec<Tally>], choice: &[usize]) -> Figures 
 
 /// Per video, the index (into `tallies[video]`, one tally per fixed schedule, each
 /// pooled over the video's clock runs) of the schedule the bound runs under `budget`,
-/// and the figures of that choice: the choice is among `allowed` indices, from `start`
-/// on every video.
+/// and the figures of that choice: the choice is among `allowed` indices, from the
+/// better (as a start, [`better_start`]) of those of `starts` that are allowed, each
+/// run on every video (the first allowed index when none is).
 pub(super) fn bound(
     classes: usize,
     tallies: &[Vec<Tally>],
     allowed: &[usize],
-    start: usize,
+    starts: &[usize],
     budget: f64,
 ) -> (Vec<usize>, Figures) {
-    let mut choice = vec![start; tallies.len()];
+    // a start must be allowed and held by every video
+    let held = |j: &usize| allowed.contains(j) && tallies.iter().all(|t| *j < t.len());
+    let first = starts
+        .iter()
+        .chain(allowed)
+        .copied()
+        .find(|j| held(j))
+        .unwrap_or(0);
+    let mut choice = vec![first; tallies.len()];
     let mut cur = figures(classes, tallies, &choice);
+    for &j in starts.iter().filter(|j| held(j)) {
+        let other = vec![j; tallies.len()];
+        let f = figures(classes, tallies, &other);
+        if better_start(&f, &cur, budget) {
+            choice = other;
+            cur = f;
+        }
+    }
     for _ in 0..SWEEPS {
         let mut changed = false;
         for i in 0..tallies.len() {
@@ -91,27 +110,41 @@ mod tests {
         let t = tallies();
         let start = figures(1, &t, &[0, 0]);
         // 2 ms per frame: one video of the two can run the dear schedule
-        let c = bound(1, &t, &[0, 1], 0, 2.0).0;
+        let c = bound(1, &t, &[0, 1], &[0], 2.0).0;
         assert_eq!(c.iter().filter(|&&j| j == 1).count(), 1, "{c:?}");
         let f = figures(1, &t, &c);
         assert!(f.ms_per_frame <= 2.0 + 1e-12);
         assert!(f.sap50 > start.sap50, "{} vs {}", f.sap50, start.sap50);
         // 3 ms: both
-        assert_eq!(bound(1, &t, &[0, 1], 0, 3.0).0, vec![1, 1]);
+        assert_eq!(bound(1, &t, &[0, 1], &[0], 3.0).0, vec![1, 1]);
         // 1 ms, or the dear schedule not allowed: the start
-        assert_eq!(bound(1, &t, &[0, 1], 0, 1.0).0, vec![0, 0]);
-        assert_eq!(bound(1, &t, &[0], 0, 3.0).0, vec![0, 0]);
+        assert_eq!(bound(1, &t, &[0, 1], &[0], 1.0).0, vec![0, 0]);
+        assert_eq!(bound(1, &t, &[0], &[0], 3.0).0, vec![0, 0]);
     }
 
     #[test]
     fn from_a_start_over_the_budget_the_bound_comes_down_to_it() {
         let t = tallies();
         // start dear everywhere (3 ms) under 2 ms: one video comes down to 1 ms
-        let c = bound(1, &t, &[0, 1], 1, 2.0).0;
+        let c = bound(1, &t, &[0, 1], &[1], 2.0).0;
         assert!(figures(1, &t, &c).ms_per_frame <= 2.0 + 1e-12, "{c:?}");
         // nothing keeps 0.5 ms: the cheapest choice
-        assert_eq!(bound(1, &t, &[0, 1], 1, 0.5).0, vec![0, 0]);
+        assert_eq!(bound(1, &t, &[0, 1], &[1], 0.5).0, vec![0, 0]);
         // no videos, nothing to choose
-        assert!(bound(1, &[], &[0, 1], 0, 2.0).0.is_empty());
+        assert!(bound(1, &[], &[0, 1], &[0], 2.0).0.is_empty());
+    }
+
+    #[test]
+    fn the_bound_starts_from_the_better_of_its_starts() {
+        let t = tallies();
+        // under 3 ms the dear schedule is the better start, and nothing beats it
+        assert_eq!(bound(1, &t, &[0, 1], &[0, 1], 3.0).0, vec![1, 1]);
+        // a start that is not allowed is passed over
+        assert_eq!(bound(1, &t, &[0], &[0, 1], 3.0).0, vec![0, 0]);
+        // under 1 ms only the cheap one keeps the budget
+        assert_eq!(bound(1, &t, &[0, 1], &[1, 0], 1.0).0, vec![0, 0]);
+        // a start no video holds is passed over; no start: the first allowed
+        assert_eq!(bound(1, &t, &[0, 1], &[7], 1.0).0, vec![0, 0]);
+        assert_eq!(bound(1, &t, &[1], &[], 3.0).0, vec![1, 1]);
     }
 }

@@ -25,10 +25,11 @@
 //!    runtime's own [`Scheduler`] over a bundle holding its tables;
 //! 6. `oracle`: per frame, the cheapest variant that gets the frame right (the replay's
 //!    truth), detecting every frame;
-//! 7. `hindsight`: per video, the fixed (variant, every `N`) schedule with the tracker
+//! 7. `hindsight`: per video, the fixed (variant, every `N`) schedule of those a budget
+//!    table may hold (with the tracker, and without it when tables may run without it)
 //!    chosen knowing the videos' truth, the choices together keeping the budget
 //!    (module `hindsight`): how much choosing the right schedule per video could gain over
-//!    static + tracker on these videos.
+//!    static and static + tracker on these videos.
 //!
 //! The paper's MDP also keeps its offline (clock-free) evaluation in [`crate::eval`].
 
@@ -555,14 +556,14 @@ pub fn stream_strategy(
     })
 }
 
-/// The fixed actions the hindsight bound chooses among: every budget's choices
-/// ([`BudgetPolicies::choices`]), ascending.
+/// The fixed actions the hindsight bound chooses among: every budget's actions a table
+/// may hold ([`BudgetPolicies::table_choices`]), ascending.
 fn hindsight_actions(pol: &BudgetPolicies) -> Vec<usize> {
     let mut fixed: Vec<usize> = pol
         .config
         .budgets_ms
         .iter()
-        .flat_map(|&b| pol.choices(b))
+        .flat_map(|&b| pol.table_choices(b))
         .collect();
     fixed.sort_unstable();
     fixed.dedup();
@@ -596,13 +597,19 @@ pub fn stream_all(
     let alike = first_alike(pol, &combos);
     let fixed = hindsight_actions(pol);
     // per fixed action, the (budget, strategy) pair whose runs are its own, if any:
-    // static + tracker's schedule under some budget
+    // static + tracker's schedule, or static's (the same action without the tracker),
+    // under some budget
     let streamed: Vec<Option<usize>> = {
         let behaviours: Vec<Behaviour> = combos.iter().map(|&(k, s)| pol.behaviour(k, s)).collect();
+        let a_n = pol.tracked_actions();
         fixed
             .iter()
             .map(|&a| {
-                let own = Behaviour::Fixed(BudgetStrategy::StaticTracker, a);
+                let own = if pol.tracks(a) {
+                    Behaviour::Fixed(BudgetStrategy::StaticTracker, a)
+                } else {
+                    Behaviour::Fixed(BudgetStrategy::Static, a - a_n)
+                };
                 behaviours.iter().position(|b| *b == own)
             })
             .collect()
@@ -665,16 +672,19 @@ pub fn stream_all(
         .map(|k| {
             let b = pol.config.budgets_ms[k];
             let allowed: Vec<usize> = pol
-                .choices(b)
+                .table_choices(b)
                 .iter()
                 .filter_map(|a| fixed.iter().position(|f| f == a))
                 .collect();
-            let start = fixed
-                .iter()
-                .position(|&a| a == pol.static_tracker(k))
-                .or_else(|| allowed.first().copied())
-                .unwrap_or(0);
-            hindsight::bound(log.classes, &tallies, &allowed, start, b).0
+            // from the better of static + tracker's and static's schedules
+            let starts: Vec<usize> = [
+                pol.static_tracker(k),
+                pol.tracked_actions() + pol.static_action(b),
+            ]
+            .iter()
+            .filter_map(|s| fixed.iter().position(|a| a == s))
+            .collect();
+            hindsight::bound(log.classes, &tallies, &allowed, &starts, b).0
         })
         .collect();
     Ok(combos

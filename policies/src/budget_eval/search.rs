@@ -6,7 +6,8 @@
 //! changed (most looked-up first) while that pays on both halves of the tuning videos.
 //! The best fixed schedule with the tracker is static + tracker's
 //! ([`SearchTrace::best_fixed`]), the best without it static's
-//! ([`SearchTrace::best_static`]), both judged without the budget keeper.
+//! ([`SearchTrace::best_static`]), both judged without the budget keeper; the hindsight
+//! bound chooses among the same fixed schedules per video.
 //!
 //! # Cost on the clock
 //!
@@ -90,9 +91,10 @@ pub struct SearchTrace {
     #[serde(default)]
     pub best_static_ms_per_frame: f64,
     /// sAP@0.5 of the hindsight bound on the same runs (module `budget_eval::hindsight`): per
-    /// tuning video, the fixed schedule within the burst chosen knowing its truth, the
-    /// choices together keeping the budget; streamed as static + tracker is (without
-    /// the keeper). How much a table could gain here by choosing per video.
+    /// tuning video, the fixed schedule a table may hold (with the tracker or without
+    /// it) chosen knowing its truth, the choices together keeping the budget; streamed
+    /// as static and static + tracker are (without the keeper). How much a table could
+    /// gain here by choosing per video.
     #[serde(default)]
     pub hindsight_sap50: f64,
     /// Its device ms per frame, same runs.
@@ -398,10 +400,10 @@ pub fn search_tables(
             }
             bare
         });
-        // per tuning video, per fixed schedule with the tracker: its clock runs' tally
-        // (the bound's)
+        // per tuning video, per action a table may hold (in `choices` order): its clock
+        // runs' tally without the keeper (the bound's)
         let mut tallies: Vec<Vec<Tally>> =
-            vec![Vec::with_capacity(tracked.len()); clock.videos.len()];
+            vec![Vec::with_capacity(choices.len()); clock.videos.len()];
         let mut best_static: Option<(u16, Figures)> = None;
         for &a in untracked.iter().filter(|a| !choices.contains(a)) {
             // static's candidate only, judged without the keeper as static runs
@@ -413,17 +415,8 @@ pub fn search_tables(
         for (&a, name) in choices.iter().zip(names) {
             let table = vec![a as u16; states];
             let (runs, fig) = full(policy, &table)?;
-            if !tracked.contains(&a) {
-                // static's candidate, judged without the keeper
-                let bare_full = bare.as_mut().map(|b| full(b, &table)).transpose()?;
-                let static_fig = bare_full.as_ref().map_or(&fig, |(_, f)| f);
-                keep_better(&mut best_static, (a - a_n) as u16, static_fig, budget);
-                // and a start, but neither static + tracker's schedule nor the bound's
-                if better_start(&fig, &best.3, budget) {
-                    best = (name, table, runs, fig);
-                }
-                continue;
-            }
+            // as a fixed schedule (static's or static + tracker's, and the bound's),
+            // judged without the keeper as they run
             let bare_full = bare.as_mut().map(|b| full(b, &table)).transpose()?;
             let (fixed_runs, fixed_fig) = bare_full.as_ref().map_or((&runs, &fig), |(r, f)| (r, f));
             for (t, rs) in tallies.iter_mut().zip(fixed_runs) {
@@ -433,17 +426,26 @@ pub fn search_tables(
                 }
                 t.push(pooled);
             }
-            keep_better(&mut best_fixed, a as u16, fixed_fig, budget);
+            if tracked.contains(&a) {
+                keep_better(&mut best_fixed, a as u16, fixed_fig, budget);
+            } else {
+                keep_better(&mut best_static, (a - a_n) as u16, fixed_fig, budget);
+            }
             if better_start(&fig, &best.3, budget) {
                 best = (name, table, runs, fig);
             }
         }
-        let start_at = best_fixed
-            .as_ref()
-            .and_then(|(bf, _)| tracked.iter().position(|&c| c == usize::from(*bf)))
-            .unwrap_or(0);
-        let every: Vec<usize> = (0..tracked.len()).collect();
-        let (_, bound) = super::hindsight::bound(clock.classes, &tallies, &every, start_at, budget);
+        // the bound starts from the better of static + tracker's and static's schedules
+        let starts: Vec<usize> = [
+            best_fixed.as_ref().map(|(a, _)| usize::from(*a)),
+            best_static.as_ref().map(|(a, _)| a_n + usize::from(*a)),
+        ]
+        .into_iter()
+        .flatten()
+        .filter_map(|a| choices.iter().position(|&c| c == a))
+        .collect();
+        let every: Vec<usize> = (0..choices.len()).collect();
+        let (_, bound) = super::hindsight::bound(clock.classes, &tallies, &every, &starts, budget);
         let (start, mut table, mut runs, mut fig) = best;
         let mut changes = 0usize;
         let groups = move_groups(cfg.search_level, states, v_n);
