@@ -100,9 +100,14 @@ fn main() -> ExitCode {
     }
 }
 
+/// The clone `cargo xtask` was run in: `cargo run` tells the process where its
+/// manifest is, so a binary built in another clone sharing the target folder still
+/// works on this one; the path it was built from otherwise.
 fn workspace_root() -> PathBuf {
-    let here = Path::new(env!("CARGO_MANIFEST_DIR"));
-    here.parent().unwrap_or(here).to_path_buf()
+    let here = std::env::var_os("CARGO_MANIFEST_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")));
+    here.parent().map_or_else(|| here.clone(), Path::to_path_buf)
 }
 
 fn cache_dir() -> Result<PathBuf> {
