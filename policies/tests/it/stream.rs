@@ -19,7 +19,8 @@ fn xywh(b: &BBox) -> [f64; 4] {
 
 /// Moving objects of 3 classes over 3 videos, each with a crowd (ignore region) of one
 /// class; a noisy detector whose compute time varies from 5 to 90 ms and that also
-/// fires inside the crowd, streamed at 30 fps with the latest-frame rule.
+/// fires inside the crowd, streamed at 30 fps with the latest-frame rule: sAP@0.5,
+/// sAP@[.5:.95] and streaming F1 equal pycocotools' on the same pairs.
 #[test]
 fn stream_sap_matches_pycocotools() {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(23);
@@ -187,6 +188,24 @@ fn stream_sap_matches_pycocotools() {
     assert!(
         (ours - t).abs() < 1e-9,
         "sAP@[.5:.95]: frugal {ours}, pycocotools {t}"
+    );
+    // streaming F1 (the budget scores' `sf1`): the same pairs, F1 at IoU 0.5
+    let ours_f1 = frugal_models::metrics::evaluate(
+        &all_images,
+        classes,
+        0.5,
+        f32::NEG_INFINITY,
+        frugal_models::metrics::Interpolation::AllPoint,
+    )
+    .f1;
+    let theirs_f1 = theirs["sf1"].as_f64().unwrap();
+    assert!(
+        ours_f1 > 0.05 && ours_f1 < 0.95,
+        "a case far from 0 and 1: {ours_f1}"
+    );
+    assert!(
+        (ours_f1 - theirs_f1).abs() < 1e-9,
+        "streaming F1: frugal {ours_f1}, pycocotools {theirs_f1}"
     );
 }
 
