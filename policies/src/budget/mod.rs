@@ -454,6 +454,12 @@ impl BudgetPolicies {
         a < self.tracked_actions()
     }
 
+    /// Action `a`'s schedule (its variant and period) without the tracker.
+    pub fn untracked(&self, a: usize) -> usize {
+        let a_n = self.tracked_actions();
+        a % a_n.max(1) + a_n
+    }
+
     /// The variant of action `a`.
     pub fn variant_of(&self, a: usize) -> usize {
         (a % self.tracked_actions().max(1)) / self.config.periods.len().max(1)

@@ -677,13 +677,10 @@ pub fn stream_all(
                 .filter_map(|a| fixed.iter().position(|f| f == a))
                 .collect();
             // from the better of static + tracker's and static's schedules
-            let starts: Vec<usize> = [
-                pol.static_tracker(k),
-                pol.tracked_actions() + pol.static_action(b),
-            ]
-            .iter()
-            .filter_map(|s| fixed.iter().position(|a| a == s))
-            .collect();
+            let starts: Vec<usize> = [pol.static_tracker(k), pol.untracked(pol.static_action(b))]
+                .iter()
+                .filter_map(|s| fixed.iter().position(|a| a == s))
+                .collect();
             hindsight::bound(log.classes, &tallies, &allowed, &starts, b).0
         })
         .collect();

@@ -633,9 +633,8 @@ fn static_detects_as_often_as_its_budget_allows_and_leaves_the_frames_between_al
 fn a_table_of_static_s_untracked_action_streams_as_static() {
     let (log, frames, mut pol) = trained();
     pol.config.keep_window = 0; // static keeps no budget keeper
-    let a_n = pol.tracked_actions();
     let statics: Vec<u16> = (pol.config.budgets_ms.iter())
-        .map(|&b| (a_n + pol.static_action(b)) as u16)
+        .map(|&b| pol.untracked(pol.static_action(b)) as u16)
         .collect();
     for (p, a) in pol.policies.iter_mut().zip(statics) {
         p.actions.iter_mut().for_each(|x| *x = a);
