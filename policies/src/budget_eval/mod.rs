@@ -668,6 +668,7 @@ pub fn stream_all(
         .into_iter()
         .map(|(out, fixed_runs, t)| ((out, fixed_runs), t))
         .unzip();
+    let steady: Vec<f64> = fixed.iter().map(|&a| pol.cost_ms(a)).collect();
     let hindsight: Vec<Vec<usize>> = (0..pol.config.budgets_ms.len())
         .map(|k| {
             let b = pol.config.budgets_ms[k];
@@ -681,7 +682,7 @@ pub fn stream_all(
                 .iter()
                 .filter_map(|s| fixed.iter().position(|a| a == s))
                 .collect();
-            hindsight::bound(log.classes, &tallies, &allowed, &starts, b).0
+            hindsight::bound(log.classes, &tallies, &steady, &allowed, &starts, b).0
         })
         .collect();
     Ok(combos
