@@ -364,12 +364,12 @@ pub fn search_tables(
         // static's candidates: every schedule without the tracker within the burst,
         // whether or not a table may hold one
         let a_n = pol.tracked_actions();
-        let untracked: Vec<usize> = (a_n..2 * a_n)
-            .filter(|&a| pol.cost_ms(a) <= cfg.burst * budget)
-            .collect();
         // per action, its cost over whole periods: a fixed schedule keeps the budget
         // when the smaller of that and its ms per frame on the clock does
         let steady: Vec<f64> = (0..2 * a_n).map(|a| pol.cost_ms(a)).collect();
+        let untracked: Vec<usize> = (a_n..2 * a_n)
+            .filter(|&a| steady[a] <= cfg.burst * budget)
+            .collect();
         let states = pol.policies[k].actions.len();
         let v_n = pol.variants.len();
         let mut tables = 0usize;
