@@ -247,7 +247,8 @@ pub struct StreamTiming {
     /// 95th percentile of the device compute per processed frame, ms.
     pub p95_device_ms: f64,
     /// Device compute per frame of video time (busy time over the videos' frames), ms:
-    /// what a per-frame latency budget bounds.
+    /// what a per-frame latency budget bounds. The budget evaluation counts whole
+    /// detection cycles only ([`whole_cycles`]).
     pub device_ms_per_frame: f64,
 }
 
@@ -301,6 +302,30 @@ pub fn timing(runs: &[(&[f64], &StreamRun)]) -> StreamTiming {
         busy / t.frames as f64
     };
     t
+}
+
+/// Device compute over the whole cycles of `run`, a stream of `frames` frames: `(busy
+/// ms, frames)` from the first output that opens a cycle (`opens[i]` for output `i`, a
+/// detection) up to, not including, the last one. A clip cuts the last cycle short
+/// while its opening detection is charged in full: detecting every 2 frames over 59
+/// frames runs 30 detections, `30 / 59` of a detection per frame where a flight runs
+/// `1 / 2`; over whole cycles it is 29 in 58 frames. With fewer than two cycles
+/// opened the whole run is counted, `(every output's compute, frames)`.
+pub fn whole_cycles(run: &StreamRun, frames: usize, opens: &[bool]) -> (f64, usize) {
+    let mut starts = run
+        .outputs
+        .iter()
+        .zip(opens)
+        .enumerate()
+        .filter(|(_, (_, o))| **o)
+        .map(|(i, (out, _))| (i, out.frame));
+    let first = starts.next();
+    match (first, starts.next_back()) {
+        (Some((i, f)), Some((j, g))) if g > f => {
+            (run.outputs[i..j].iter().map(|o| o.device_ms).sum(), g - f)
+        }
+        _ => (run.outputs.iter().map(|o| o.device_ms).sum(), frames),
+    }
 }
 
 #[cfg(test)]
@@ -382,6 +407,40 @@ mod tests {
         let t = timing(&[(&arr, &run)]);
         assert_eq!((t.frames, t.processed, t.skipped), (8, 3, 0));
         assert!((t.device_ms_per_frame - 450.0 / 8.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn whole_cycles_leave_out_the_cycle_a_clip_cuts_short() {
+        // 31.8 ms every 2 frames over 59 frames: 30 detections, the last one's period
+        // cut short by the clip
+        let arr = arrivals(59, 30.0);
+        let run = simulate(&arr, FrameRule::Latest, 1.0, |f| {
+            Ok((f % 2 == 0).then(|| (vec![det(f as f32)], 31.8)))
+        })
+        .unwrap();
+        assert_eq!(run.outputs.len(), 30);
+        let t = timing(&[(&arr, &run)]);
+        assert!((t.device_ms_per_frame - 30.0 * 31.8 / 59.0).abs() < 1e-9);
+        let opens = vec![true; run.outputs.len()];
+        let (busy, frames) = whole_cycles(&run, arr.len(), &opens);
+        assert_eq!(frames, 58);
+        assert!((busy / frames as f64 - 15.9).abs() < 1e-9);
+        // with a tracker step (2 ms) between: a cycle is a detection and its steps
+        let run = simulate(&arr, FrameRule::Latest, 1.0, |f| {
+            Ok(Some((
+                vec![det(f as f32)],
+                if f % 2 == 0 { 31.8 } else { 2.0 },
+            )))
+        })
+        .unwrap();
+        let opens: Vec<bool> = run.outputs.iter().map(|o| o.frame % 2 == 0).collect();
+        let (busy, frames) = whole_cycles(&run, arr.len(), &opens);
+        assert_eq!(frames, 58);
+        assert!((busy / frames as f64 - (31.8 + 2.0) / 2.0).abs() < 1e-9);
+        // one cycle only: the whole run
+        let (busy, frames) = whole_cycles(&run, arr.len(), &[true]);
+        assert_eq!(frames, 59);
+        assert!((busy - (30.0 * 31.8 + 29.0 * 2.0)).abs() < 1e-9);
     }
 
     #[test]

@@ -23,29 +23,15 @@ use super::search::{Figures, better_start};
 /// Sweeps over the videos at most.
 pub const SWEEPS: usize = 6;
 
-/// The figures of `choice` (per video, an index into its tallies), its device ms per
-/// frame as judged against the budget: on each video, schedule `j`'s ms per frame on
-/// the clock at most `steady[j]`, its cost over whole periods
-/// ([`super::search::judged`]).
-fn figures(classes: usize, tallies: &[Vec<Tally>], steady: &[f64], choice: &[usize]) -> Figures {
+/// The figures of `choice` (per video, an index into its tallies), device ms per frame
+/// over whole detection cycles as everywhere in the budget evaluation.
+fn figures(classes: usize, tallies: &[Vec<Tally>], choice: &[usize]) -> Figures {
     let pick = || tallies.iter().zip(choice).map(|(t, &j)| &t[j]);
     let sap50 = pooled_sap50(classes, pick());
-    let (busy, frames) = tallies
-        .iter()
-        .zip(choice)
-        .fold((0.0, 0usize), |(b, f), (t, &j)| {
-            let cap = steady.get(j).copied().unwrap_or(f64::INFINITY);
-            let ms = ms_per_frame([&t[j]]).min(cap);
-            (b + ms * t[j].frames as f64, f + t[j].frames)
-        });
     Figures {
         sap50,
         halves: [sap50; 2],
-        ms_per_frame: if frames > 0 {
-            busy / frames as f64
-        } else {
-            0.0
-        },
+        ms_per_frame: ms_per_frame(pick()),
     }
 }
 
@@ -53,13 +39,10 @@ fn figures(classes: usize, tallies: &[Vec<Tally>], steady: &[f64], choice: &[usi
 /// pooled over the video's clock runs) of the schedule the bound runs under `budget`,
 /// and the figures of that choice: the choice is among `allowed` indices, from the
 /// better (as a start, [`better_start`]) of those of `starts` that are allowed, each
-/// run on every video (the first allowed index when none is). `steady[j]` is schedule
-/// `j`'s cost over whole periods (device ms per frame), which caps its cost on each
-/// video as the search caps static's ([`super::search::judged`]).
+/// run on every video (the first allowed index when none is).
 pub(super) fn bound(
     classes: usize,
     tallies: &[Vec<Tally>],
-    steady: &[f64],
     allowed: &[usize],
     starts: &[usize],
     budget: f64,
@@ -73,10 +56,10 @@ pub(super) fn bound(
         .find(|j| held(j))
         .unwrap_or(0);
     let mut choice = vec![first; tallies.len()];
-    let mut cur = figures(classes, tallies, steady, &choice);
+    let mut cur = figures(classes, tallies, &choice);
     for &j in starts.iter().filter(|j| held(j)) {
         let other = vec![j; tallies.len()];
-        let f = figures(classes, tallies, steady, &other);
+        let f = figures(classes, tallies, &other);
         if better_start(&f, &cur, budget) {
             choice = other;
             cur = f;
@@ -92,7 +75,7 @@ pub(super) fn bound(
                 }
                 let keep = choice[i];
                 choice[i] = j;
-                let f = figures(classes, tallies, steady, &choice);
+                let f = figures(classes, tallies, &choice);
                 choice[i] = keep;
                 if better_start(&f, best.as_ref().map_or(&cur, |b| &b.1), budget) {
                     best = Some((j, f));
@@ -115,9 +98,6 @@ pub(super) fn bound(
 mod tests {
     use super::*;
 
-    /// No cap: every schedule judged by its ms per frame on the clock.
-    const NONE: &[f64] = &[];
-
     /// Two videos, one class with two truth boxes each; schedule 0 costs 1 ms per frame
     /// and finds one box, schedule 1 costs 3 and finds both.
     fn tallies() -> Vec<Vec<Tally>> {
@@ -129,61 +109,43 @@ mod tests {
     #[test]
     fn the_bound_takes_the_dear_schedule_where_the_budget_lets_it_and_never_scores_less() {
         let t = tallies();
-        let start = figures(1, &t, NONE, &[0, 0]);
+        let start = figures(1, &t, &[0, 0]);
         // 2 ms per frame: one video of the two can run the dear schedule
-        let c = bound(1, &t, NONE, &[0, 1], &[0], 2.0).0;
+        let c = bound(1, &t, &[0, 1], &[0], 2.0).0;
         assert_eq!(c.iter().filter(|&&j| j == 1).count(), 1, "{c:?}");
-        let f = figures(1, &t, NONE, &c);
+        let f = figures(1, &t, &c);
         assert!(f.ms_per_frame <= 2.0 + 1e-12);
         assert!(f.sap50 > start.sap50, "{} vs {}", f.sap50, start.sap50);
         // 3 ms: both
-        assert_eq!(bound(1, &t, NONE, &[0, 1], &[0], 3.0).0, vec![1, 1]);
+        assert_eq!(bound(1, &t, &[0, 1], &[0], 3.0).0, vec![1, 1]);
         // 1 ms, or the dear schedule not allowed: the start
-        assert_eq!(bound(1, &t, NONE, &[0, 1], &[0], 1.0).0, vec![0, 0]);
-        assert_eq!(bound(1, &t, NONE, &[0], &[0], 3.0).0, vec![0, 0]);
+        assert_eq!(bound(1, &t, &[0, 1], &[0], 1.0).0, vec![0, 0]);
+        assert_eq!(bound(1, &t, &[0], &[0], 3.0).0, vec![0, 0]);
     }
 
     #[test]
     fn from_a_start_over_the_budget_the_bound_comes_down_to_it() {
         let t = tallies();
         // start dear everywhere (3 ms) under 2 ms: one video comes down to 1 ms
-        let c = bound(1, &t, NONE, &[0, 1], &[1], 2.0).0;
-        assert!(
-            figures(1, &t, NONE, &c).ms_per_frame <= 2.0 + 1e-12,
-            "{c:?}"
-        );
+        let c = bound(1, &t, &[0, 1], &[1], 2.0).0;
+        assert!(figures(1, &t, &c).ms_per_frame <= 2.0 + 1e-12, "{c:?}");
         // nothing keeps 0.5 ms: the cheapest choice
-        assert_eq!(bound(1, &t, NONE, &[0, 1], &[1], 0.5).0, vec![0, 0]);
+        assert_eq!(bound(1, &t, &[0, 1], &[1], 0.5).0, vec![0, 0]);
         // no videos, nothing to choose
-        assert!(bound(1, &[], NONE, &[0, 1], &[0], 2.0).0.is_empty());
+        assert!(bound(1, &[], &[0, 1], &[0], 2.0).0.is_empty());
     }
 
     #[test]
     fn the_bound_starts_from_the_better_of_its_starts() {
         let t = tallies();
         // under 3 ms the dear schedule is the better start, and nothing beats it
-        assert_eq!(bound(1, &t, NONE, &[0, 1], &[0, 1], 3.0).0, vec![1, 1]);
+        assert_eq!(bound(1, &t, &[0, 1], &[0, 1], 3.0).0, vec![1, 1]);
         // a start that is not allowed is passed over
-        assert_eq!(bound(1, &t, NONE, &[0], &[0, 1], 3.0).0, vec![0, 0]);
+        assert_eq!(bound(1, &t, &[0], &[0, 1], 3.0).0, vec![0, 0]);
         // under 1 ms only the cheap one keeps the budget
-        assert_eq!(bound(1, &t, NONE, &[0, 1], &[1, 0], 1.0).0, vec![0, 0]);
+        assert_eq!(bound(1, &t, &[0, 1], &[1, 0], 1.0).0, vec![0, 0]);
         // a start no video holds is passed over; no start: the first allowed
-        assert_eq!(bound(1, &t, NONE, &[0, 1], &[7], 1.0).0, vec![0, 0]);
-        assert_eq!(bound(1, &t, NONE, &[1], &[], 3.0).0, vec![1, 1]);
-    }
-
-    #[test]
-    fn a_schedule_whose_whole_periods_keep_the_budget_keeps_it_on_every_video() {
-        let t = tallies();
-        // the dear schedule runs 3 ms per frame on these clips; over whole periods 2.5
-        let steady = &[1.0, 2.5];
-        assert!((figures(1, &t, steady, &[1, 1]).ms_per_frame - 2.5).abs() < 1e-12);
-        // under 2.5 ms it may run on both videos, judged by its whole periods
-        assert_eq!(bound(1, &t, steady, &[0, 1], &[1], 2.5).0, vec![1, 1]);
-        // judged by the clips alone it could not
-        assert_ne!(bound(1, &t, NONE, &[0, 1], &[1], 2.5).0, vec![1, 1]);
-        // a cap above the clock's cost changes nothing
-        let loose = &[5.0, 5.0];
-        assert_eq!(figures(1, &t, loose, &[0, 1]).ms_per_frame, 2.0);
+        assert_eq!(bound(1, &t, &[0, 1], &[7], 1.0).0, vec![0, 0]);
+        assert_eq!(bound(1, &t, &[1], &[], 3.0).0, vec![1, 1]);
     }
 }

@@ -371,6 +371,17 @@ pub struct BudgetRun {
     pub queried: Vec<u32>,
 }
 
+impl BudgetRun {
+    /// Its device compute over whole detection cycles, a stream of `frames` frames
+    /// ([`crate::stream::whole_cycles`]): `(busy ms, frames)`, the cost a budget is held
+    /// to. A clip's last cycle is cut short, and its opening detection would otherwise
+    /// be charged in full.
+    pub fn whole_cycles(&self, frames: usize) -> (f64, usize) {
+        let opens: Vec<bool> = self.detect.iter().map(Option::is_some).collect();
+        crate::stream::whole_cycles(&self.run, frames, &opens)
+    }
+}
+
 /// What [`stream_strategy`] streams: a strategy, or one fixed (variant, every `N`)
 /// action (as static + tracker runs its own).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -668,7 +679,6 @@ pub fn stream_all(
         .into_iter()
         .map(|(out, fixed_runs, t)| ((out, fixed_runs), t))
         .unzip();
-    let steady: Vec<f64> = fixed.iter().map(|&a| pol.cost_ms(a)).collect();
     let hindsight: Vec<Vec<usize>> = (0..pol.config.budgets_ms.len())
         .map(|k| {
             let b = pol.config.budgets_ms[k];
@@ -682,7 +692,7 @@ pub fn stream_all(
                 .iter()
                 .filter_map(|s| fixed.iter().position(|a| a == s))
                 .collect();
-            hindsight::bound(log.classes, &tallies, &steady, &allowed, &starts, b).0
+            hindsight::bound(log.classes, &tallies, &allowed, &starts, b).0
         })
         .collect();
     Ok(combos

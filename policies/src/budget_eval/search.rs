@@ -20,13 +20,11 @@
 //! keeps the budget on the clock ([`SearchTrace::best_fixed`]), not only one whose
 //! segment cost fits.
 //!
-//! A clip can overstate a fixed schedule's cost the other way: the detection that
-//! starts a period the clip cuts short is charged in full. `static` detecting every 2
-//! frames with a 31.8 ms variant costs 15.9 ms per frame in flight and 16.2 over a
-//! 59-frame clip, so a 16 ms budget would turn it away on the tuning clips and leave
-//! static its every-4 schedule. A fixed schedule (static's, static + tracker's, a fixed
-//! start, the hindsight bound's per video) is therefore judged by the smaller of its
-//! cost on the clock and its cost over whole periods ([`judged`]).
+//! The clock counts whole detection cycles only ([`crate::stream::whole_cycles`]): a
+//! clip cuts its last cycle short while the detection that opens it would be charged
+//! in full. `static` detecting every 2 frames with a 31.8 ms variant costs 15.9 ms per
+//! frame in flight; charged for all 30 detections of a 59-frame clip it would cost
+//! 16.2, and a 16 ms budget would turn it away on the tuning clips.
 //!
 //! # Why
 //!
@@ -72,9 +70,7 @@ use std::sync::Mutex;
 pub struct SearchTrace {
     /// The table it started from: `learnt`, or `fixed <variant> every <N>`.
     pub start: String,
-    /// The start's device ms per frame on the tuning clock runs; as judged against the
-    /// budget, a fixed start's is at most its cost over whole periods ([`judged`]).
-    /// No move raises the table's cost above the larger of this and the budget.
+    /// The start's device ms per frame on the tuning clock runs. No move raises the table's cost above the larger of this and the budget.
     #[serde(default)]
     pub start_ms_per_frame: f64,
     /// sAP@0.5 of the learnt (Lagrangian) table on the tuning clock runs.
@@ -364,11 +360,8 @@ pub fn search_tables(
         // static's candidates: every schedule without the tracker within the burst,
         // whether or not a table may hold one
         let a_n = pol.tracked_actions();
-        // per action, its cost over whole periods: a fixed schedule keeps the budget
-        // when the smaller of that and its ms per frame on the clock does
-        let steady: Vec<f64> = (0..2 * a_n).map(|a| pol.cost_ms(a)).collect();
         let untracked: Vec<usize> = (a_n..2 * a_n)
-            .filter(|&a| steady[a] <= cfg.burst * budget)
+            .filter(|&a| pol.cost_ms(a) <= cfg.burst * budget)
             .collect();
         let states = pol.policies[k].actions.len();
         let v_n = pol.variants.len();
@@ -404,14 +397,8 @@ pub fn search_tables(
         };
         let (learnt_runs, learnt_fig) = full(policy, &learnt)?;
         let learnt_sap50 = learnt_fig.sap50;
-        // the start, and its figures as judged against the budget
-        let mut best = (
-            String::from("learnt"),
-            learnt,
-            learnt_runs,
-            learnt_fig.clone(),
-            learnt_fig,
-        );
+        // the start
+        let mut best = (String::from("learnt"), learnt, learnt_runs, learnt_fig);
         // every fixed schedule within the burst, judged like the tables by its cost on
         // the clock: the best that keeps the budget there is static + tracker's. Static
         // + tracker runs without the budget keeper, so it is judged without it too.
@@ -433,7 +420,7 @@ pub fn search_tables(
             let table = vec![a as u16; states];
             let bare = bare.as_mut().unwrap_or(&mut *policy);
             let (_, fig) = full(bare, &table)?;
-            keep_better(&mut best_static, (a - a_n) as u16, &fig, steady[a], budget);
+            keep_better(&mut best_static, (a - a_n) as u16, &fig, budget);
         }
         for (&a, name) in choices.iter().zip(names) {
             let table = vec![a as u16; states];
@@ -450,41 +437,26 @@ pub fn search_tables(
                 t.push(pooled);
             }
             if tracked.contains(&a) {
-                keep_better(&mut best_fixed, a as u16, fixed_fig, steady[a], budget);
+                keep_better(&mut best_fixed, a as u16, fixed_fig, budget);
             } else {
-                keep_better(
-                    &mut best_static,
-                    (a - a_n) as u16,
-                    fixed_fig,
-                    steady[a],
-                    budget,
-                );
+                keep_better(&mut best_static, (a - a_n) as u16, fixed_fig, budget);
             }
-            let j = judged(&fig, steady[a]);
-            if better_start(&j, &best.4, budget) {
-                best = (name, table, runs, fig, j);
+            if better_start(&fig, &best.3, budget) {
+                best = (name, table, runs, fig);
             }
         }
         // the bound starts from the better of static + tracker's and static's schedules
         let starts: Vec<usize> = [
-            best_fixed.as_ref().map(|(a, _, _)| usize::from(*a)),
-            best_static.as_ref().map(|(a, _, _)| a_n + usize::from(*a)),
+            best_fixed.as_ref().map(|(a, _)| usize::from(*a)),
+            best_static.as_ref().map(|(a, _)| a_n + usize::from(*a)),
         ]
         .into_iter()
         .flatten()
         .filter_map(|a| choices.iter().position(|&c| c == a))
         .collect();
         let every: Vec<usize> = (0..choices.len()).collect();
-        let steady_choices: Vec<f64> = choices.iter().map(|&a| steady[a]).collect();
-        let (_, bound) = super::hindsight::bound(
-            clock.classes,
-            &tallies,
-            &steady_choices,
-            &every,
-            &starts,
-            budget,
-        );
-        let (start, mut table, mut runs, mut fig, _) = best;
+        let (_, bound) = super::hindsight::bound(clock.classes, &tallies, &every, &starts, budget);
+        let (start, mut table, mut runs, mut fig) = best;
         let start_ms_per_frame = fig.ms_per_frame;
         let mut changes = 0usize;
         let groups = move_groups(cfg.search_level, states, v_n);
@@ -573,7 +545,7 @@ pub fn search_tables(
             p.p95_ms = nearest_rank(&per_video, 0.95);
             p.train_f1 = f1;
         }
-        let (best_fixed, best_fixed_fig, _) = best_fixed.ok_or_else(|| {
+        let (best_fixed, best_fixed_fig) = best_fixed.ok_or_else(|| {
             PolicyError::invalid(
                 std::path::Path::new("<budget policy>"),
                 "action_ms",
@@ -587,9 +559,9 @@ pub fn search_tables(
             best_fixed,
             best_fixed_sap50: best_fixed_fig.sap50,
             best_fixed_ms_per_frame: best_fixed_fig.ms_per_frame,
-            best_static: best_static.as_ref().map(|(a, _, _)| *a),
-            best_static_sap50: best_static.as_ref().map_or(0.0, |(_, f, _)| f.sap50),
-            best_static_ms_per_frame: best_static.as_ref().map_or(0.0, |(_, f, _)| f.ms_per_frame),
+            best_static: best_static.as_ref().map(|(a, _)| *a),
+            best_static_sap50: best_static.as_ref().map_or(0.0, |(_, f)| f.sap50),
+            best_static_ms_per_frame: best_static.as_ref().map_or(0.0, |(_, f)| f.ms_per_frame),
             hindsight_sap50: bound.sap50,
             hindsight_ms_per_frame: bound.ms_per_frame,
             sap50: fig.sap50,
@@ -630,33 +602,17 @@ fn move_groups(level: SearchLevel, states: usize, variants: usize) -> Vec<Vec<us
     }
 }
 
-/// A fixed action kept: the action, its figures on the clock, and the same figures as
-/// judged against the budget ([`judged`]).
-type Kept = (u16, Figures, Figures);
+/// A fixed action kept: the action and its figures on the clock.
+type Kept = (u16, Figures);
 
-/// `fig`, a fixed schedule's figures on the clock, as judged against the budget: its
-/// device ms per frame at most `steady_ms`, the schedule's cost over whole periods
-/// ([`crate::budget::BudgetPolicies::cost_ms`]). On a clip the clock also charges the
-/// detection that starts a period the clip cuts short: `static` detecting every 2
-/// frames over 59 frames runs 30 detections, `30 / 59` of a detection per frame where
-/// a flight runs `1 / 2`. A schedule whose whole periods keep the budget keeps it.
-pub(super) fn judged(fig: &Figures, steady_ms: f64) -> Figures {
-    Figures {
-        ms_per_frame: fig.ms_per_frame.min(steady_ms),
-        ..fig.clone()
-    }
-}
-
-/// Keeps fixed action `a` in `best` when its figures `fig` on the clock, judged with
-/// its cost over whole periods `steady_ms` ([`judged`]), make a better start
-/// ([`better_start`]) than those kept, or nothing is kept yet.
-fn keep_better(best: &mut Option<Kept>, a: u16, fig: &Figures, steady_ms: f64, budget: f64) {
-    let j = judged(fig, steady_ms);
+/// Keeps fixed action `a` in `best` when its figures `fig` on the clock make a better
+/// start ([`better_start`]) than those kept, or nothing is kept yet.
+fn keep_better(best: &mut Option<Kept>, a: u16, fig: &Figures, budget: f64) {
     if best
         .as_ref()
-        .is_none_or(|(_, _, f)| better_start(&j, f, budget))
+        .is_none_or(|(_, f)| better_start(fig, f, budget))
     {
-        *best = Some((a, fig.clone(), j));
+        *best = Some((a, fig.clone()));
     }
 }
 
@@ -749,27 +705,5 @@ mod tests {
         assert!(!better_start(&over, &fits_low, 16.0));
         assert!(better_start(&fits_low, &over, 16.0));
         assert!(better_start(&cheaper_over, &over, 16.0));
-    }
-
-    #[test]
-    fn a_fixed_schedule_is_judged_by_its_whole_periods_when_a_clip_cuts_one_short() {
-        // static every 2 frames at 31.8 ms: 15.9 ms per frame over whole periods, 16.17
-        // over a 59-frame clip that starts and ends on a detection
-        let clip = fig(0.79, [0.79, 0.79], 30.0 * 31.8 / 59.0);
-        let tracked = fig(0.75, [0.75, 0.75], 9.7);
-        let mut kept = None;
-        keep_better(&mut kept, 3, &tracked, 12.0, 16.0);
-        keep_better(&mut kept, 1, &clip, 31.8 / 2.0, 16.0);
-        let (a, on_clock, j) = kept.expect("kept");
-        assert_eq!(a, 1, "every 2 keeps 16 ms over whole periods");
-        assert!((on_clock.ms_per_frame - 30.0 * 31.8 / 59.0).abs() < 1e-12);
-        assert!((j.ms_per_frame - 15.9).abs() < 1e-12);
-        // judged by the clip alone it would not
-        let mut clip_only = None;
-        keep_better(&mut clip_only, 3, &tracked, f64::INFINITY, 16.0);
-        keep_better(&mut clip_only, 1, &clip, f64::INFINITY, 16.0);
-        assert_eq!(clip_only.map(|k| k.0), Some(3));
-        // a cost over whole periods above the clock's changes nothing
-        assert!((judged(&tracked, 12.0).ms_per_frame - 9.7).abs() < 1e-12);
     }
 }
