@@ -247,8 +247,8 @@ pub struct StreamTiming {
     /// 95th percentile of the device compute per processed frame, ms.
     pub p95_device_ms: f64,
     /// Device compute per frame of video time (busy time over the videos' frames), ms:
-    /// what a per-frame latency budget bounds. The budget evaluation counts whole
-    /// detection cycles only ([`whole_cycles`]).
+    /// what a per-frame latency budget bounds. The budget evaluation pro-rates the
+    /// last detection by the part of its cycle the clip covers ([`charged`]).
     pub device_ms_per_frame: f64,
 }
 
@@ -304,28 +304,30 @@ pub fn timing(runs: &[(&[f64], &StreamRun)]) -> StreamTiming {
     t
 }
 
-/// Device compute over the whole cycles of `run`, a stream of `frames` frames: `(busy
-/// ms, frames)` from the first output that opens a cycle (`opens[i]` for output `i`, a
-/// detection) up to, not including, the last one. A clip cuts the last cycle short
-/// while its opening detection is charged in full: detecting every 2 frames over 59
-/// frames runs 30 detections, `30 / 59` of a detection per frame where a flight runs
-/// `1 / 2`; over whole cycles it is 29 in 58 frames. With fewer than two cycles
-/// opened the whole run is counted, `(every output's compute, frames)`.
-pub fn whole_cycles(run: &StreamRun, frames: usize, opens: &[bool]) -> (f64, usize) {
-    let mut starts = run
+/// Device compute charged to `run`, a stream of `frames` frames whose outputs
+/// `opens[i]` open a detection cycle: `(busy ms, frames)` from the first detection to
+/// the end of the stream, the last detection pro-rated by the part of its cycle, of
+/// `last_period` frames, that the stream covers. A clip cuts that cycle short while
+/// its detection would be charged in full: detecting every 2 frames over 59 frames
+/// runs 30 detections, `30 / 59` of a detection per frame where a flight runs `1 / 2`;
+/// charged half its last one, it is `29.5 / 59`. A stream that detects nothing is
+/// charged every output's compute over all its frames.
+pub fn charged(run: &StreamRun, frames: usize, opens: &[bool], last_period: u32) -> (f64, usize) {
+    let mut detections = run
         .outputs
         .iter()
         .zip(opens)
         .enumerate()
         .filter(|(_, (_, o))| **o)
         .map(|(i, (out, _))| (i, out.frame));
-    let first = starts.next();
-    match (first, starts.next_back()) {
-        (Some((i, f)), Some((j, g))) if g > f => {
-            (run.outputs[i..j].iter().map(|o| o.device_ms).sum(), g - f)
-        }
-        _ => (run.outputs.iter().map(|o| o.device_ms).sum(), frames),
-    }
+    let Some((first, from)) = detections.next() else {
+        return (run.outputs.iter().map(|o| o.device_ms).sum(), frames);
+    };
+    let (last, at) = detections.next_back().unwrap_or((first, from));
+    let busy: f64 = run.outputs[first..].iter().map(|o| o.device_ms).sum();
+    let covered = frames.saturating_sub(at) as f64 / f64::from(last_period.max(1));
+    let unused = run.outputs[last].device_ms * (1.0 - covered.min(1.0));
+    (busy - unused, frames.saturating_sub(from))
 }
 
 #[cfg(test)]
@@ -410,8 +412,8 @@ mod tests {
     }
 
     #[test]
-    fn whole_cycles_leave_out_the_cycle_a_clip_cuts_short() {
-        // 31.8 ms every 2 frames over 59 frames: 30 detections, the last one's period
+    fn a_clip_charges_its_last_detection_for_the_part_of_its_cycle_it_covers() {
+        // 31.8 ms every 2 frames over 59 frames: 30 detections, the last one's cycle
         // cut short by the clip
         let arr = arrivals(59, 30.0);
         let run = simulate(&arr, FrameRule::Latest, 1.0, |f| {
@@ -422,10 +424,15 @@ mod tests {
         let t = timing(&[(&arr, &run)]);
         assert!((t.device_ms_per_frame - 30.0 * 31.8 / 59.0).abs() < 1e-9);
         let opens = vec![true; run.outputs.len()];
-        let (busy, frames) = whole_cycles(&run, arr.len(), &opens);
-        assert_eq!(frames, 58);
+        let (busy, frames) = charged(&run, arr.len(), &opens, 2);
+        assert_eq!(frames, 59);
         assert!((busy / frames as f64 - 15.9).abs() < 1e-9);
-        // with a tracker step (2 ms) between: a cycle is a detection and its steps
+        // over 60 frames the last cycle is whole: charged in full
+        let arr60 = arrivals(60, 30.0);
+        let (busy, frames) = charged(&run, arr60.len(), &opens, 2);
+        assert!((busy / frames as f64 - 15.9).abs() < 1e-9);
+        // with a tracker step (2 ms) between: the detection is pro-rated, the steps
+        // the clip holds are charged as they ran
         let run = simulate(&arr, FrameRule::Latest, 1.0, |f| {
             Ok(Some((
                 vec![det(f as f32)],
@@ -434,13 +441,20 @@ mod tests {
         })
         .unwrap();
         let opens: Vec<bool> = run.outputs.iter().map(|o| o.frame % 2 == 0).collect();
-        let (busy, frames) = whole_cycles(&run, arr.len(), &opens);
-        assert_eq!(frames, 58);
-        assert!((busy / frames as f64 - (31.8 + 2.0) / 2.0).abs() < 1e-9);
-        // one cycle only: the whole run
-        let (busy, frames) = whole_cycles(&run, arr.len(), &[true]);
+        let (busy, frames) = charged(&run, arr.len(), &opens, 2);
         assert_eq!(frames, 59);
-        assert!((busy - (30.0 * 31.8 + 29.0 * 2.0)).abs() < 1e-9);
+        assert!((busy - (29.5 * 31.8 + 29.0 * 2.0)).abs() < 1e-9);
+        // one detection every 8 frames on a 3-frame clip: 3/8 of it
+        let short = arrivals(3, 30.0);
+        let run = simulate(&short, FrameRule::Latest, 1.0, |f| {
+            Ok((f == 0).then(|| (vec![det(0.0)], 51.2)))
+        })
+        .unwrap();
+        let (busy, frames) = charged(&run, short.len(), &[true], 8);
+        assert_eq!(frames, 3);
+        assert!((busy / frames as f64 - 6.4).abs() < 1e-9);
+        // nothing detected: every output over every frame
+        assert_eq!(charged(&run, 3, &[false], 8), (51.2, 3));
     }
 
     #[test]

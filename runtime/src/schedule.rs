@@ -430,6 +430,12 @@ impl<'a> Scheduler<'a> {
         )
     }
 
+    /// The current action's period: frames from one periodic detection to the next
+    /// (at least 1).
+    pub const fn period(&self) -> u32 {
+        self.period
+    }
+
     const fn adopt(&mut self, action: ScheduleAction) {
         self.variant = action.variant;
         self.period = if action.period > 0 { action.period } else { 1 };

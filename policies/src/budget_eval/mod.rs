@@ -322,6 +322,16 @@ impl Brain<'_> {
         }
     }
 
+    /// The period (frames) of the current action: the budget table's or the chosen
+    /// (variant, every `N`); 1 for the controller and the oracle, which have none.
+    fn period(&self, ctx: &Ctx<'_>) -> u32 {
+        match self {
+            Brain::Scheduler(s, _) => s.period(),
+            Brain::Period { action, .. } => ctx.pol.period_of(*action),
+            Brain::Controller(_) | Brain::Oracle { .. } => 1,
+        }
+    }
+
     /// The best score of the detection just run; `Some(variant)` when the paper's MDP
     /// asks for another access on the same frame.
     fn detected(&mut self, score: Option<f32>) -> Option<usize> {
@@ -369,16 +379,20 @@ pub struct BudgetRun {
     /// The budget table's states the budget policy looked its actions up at, in order
     /// (empty for the other strategies).
     pub queried: Vec<u32>,
+    /// The period (frames) of the action of the last detection: how many frames its
+    /// cycle would have run had the stream gone on (1 for the paper's controller and
+    /// the oracle, which have none).
+    pub last_period: u32,
 }
 
 impl BudgetRun {
-    /// Its device compute over whole detection cycles, a stream of `frames` frames
-    /// ([`crate::stream::whole_cycles`]): `(busy ms, frames)`, the cost a budget is held
-    /// to. A clip's last cycle is cut short, and its opening detection would otherwise
-    /// be charged in full.
-    pub fn whole_cycles(&self, frames: usize) -> (f64, usize) {
+    /// Its device compute as a budget is charged, a stream of `frames` frames
+    /// ([`crate::stream::charged`]): `(busy ms, frames)`, the last detection pro-rated
+    /// by the part of its cycle the stream covers. A clip cuts that cycle short, and
+    /// its detection would otherwise be charged in full.
+    pub fn charged(&self, frames: usize) -> (f64, usize) {
         let opens: Vec<bool> = self.detect.iter().map(Option::is_some).collect();
-        crate::stream::whole_cycles(&self.run, frames, &opens)
+        crate::stream::charged(&self.run, frames, &opens, self.last_period)
     }
 }
 
@@ -503,6 +517,7 @@ pub fn stream_strategy(
     // table's, or a fixed action without it)
     let tracker = strategy.tracker();
     let mut detect = Vec::new();
+    let mut last_period = 1;
     let arr = video.arrivals_ms(cfg.fps);
     let start = cfg.start_frame(clock_run).min(arr.len().saturating_sub(1));
     let run = simulate(&arr[start..], cfg.rule, cfg.slowdown, |i| {
@@ -540,6 +555,7 @@ pub fn stream_strategy(
                     Some(next) => v = next,
                     None => {
                         detect.push(Some(v as u16));
+                        last_period = brain.period(&ctx);
                         break dets;
                     }
                 }
@@ -564,6 +580,7 @@ pub fn stream_strategy(
         run,
         detect,
         queried,
+        last_period,
     })
 }
 

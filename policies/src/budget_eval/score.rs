@@ -109,11 +109,11 @@ pub(super) fn score_runs(
         .map(Vec::as_slice)
         .zip(runs.iter().map(|(_, r)| &r.run))
         .collect();
-    // the budget bounds the compute over whole detection cycles
+    // the budget bounds the compute charged, the clips' last cycles pro-rated
     let (busy, cycle_frames) = runs
         .iter()
         .zip(&arrs)
-        .map(|((_, r), arr)| r.whole_cycles(arr.len()))
+        .map(|((_, r), arr)| r.charged(arr.len()))
         .fold((0.0, 0), |(b, f), (rb, rf)| (b + rb, f + rf));
     let mut timing = timing(&pairs);
     timing.device_ms_per_frame = if cycle_frames > 0 {
@@ -411,15 +411,14 @@ pub fn plot_budget(stem: &std::path::Path, scores: &[BudgetScore]) -> Result<()>
 /// What scoring needs of one or more streamed runs by sAP@0.5 and device time, without
 /// streaming them again: per class, the truth boxes and the `(score, is_tp)` match
 /// records of the streamed outputs at IoU 0.5 ([`class_records`]), and the device
-/// compute and frames of video time over whole detection cycles
-/// ([`BudgetRun::whole_cycles`]). Tallies add up; sAP@0.5 of pooled tallies is
+/// compute and frames of video time as a budget charges them ([`BudgetRun::charged`]). Tallies add up; sAP@0.5 of pooled tallies is
 /// [`crate::stream::sap`]'s first figure on the same runs.
 #[derive(Clone, Debug, Default)]
 pub(super) struct Tally {
     records: Vec<(usize, Vec<(f32, bool)>)>,
-    /// Device compute over whole detection cycles, ms.
+    /// Device compute charged ([`BudgetRun::charged`]), ms.
     pub busy_ms: f64,
-    /// Frames of video time of those cycles.
+    /// Frames of video time it is charged over.
     pub frames: usize,
 }
 
@@ -438,7 +437,7 @@ impl Tally {
             .map(|f| ground_truth(v, f))
             .collect();
         let images = streaming_images_with(arr, &truth, &r.run, forecast);
-        let (busy_ms, frames) = r.whole_cycles(arr.len());
+        let (busy_ms, frames) = r.charged(arr.len());
         Tally {
             records: (0..classes)
                 .map(|c| class_records(&images, c as ClassId, 0.5))
@@ -579,6 +578,7 @@ mod tests {
                 skipped: 0,
             },
             queried: Vec::new(),
+            last_period: every as u32,
         }
     }
 
@@ -609,11 +609,11 @@ mod tests {
         assert_eq!((each.detections, fourth.detections), (12, 3));
     }
 
-    /// A schedule keeps a budget when its whole detection cycles do: every 2 frames at
-    /// 31.8 ms over a 59-frame clip is 15.9 ms per frame, as in flight, not the 16.17
-    /// that charging the clip's last, cut-short cycle in full would give.
+    /// A schedule is charged as in flight: every 2 frames at 31.8 ms over a 59-frame
+    /// clip is 15.9 ms per frame, not the 16.17 that charging the detection that opens
+    /// the clip's last, cut-short cycle in full would give.
     #[test]
-    fn a_budget_is_held_to_whole_detection_cycles() {
+    fn a_clip_s_last_detection_is_charged_for_the_part_of_its_cycle_it_covers() {
         let v = video(59);
         let mut r = detecting(&v, 2);
         for o in &mut r.run.outputs {
@@ -622,14 +622,14 @@ mod tests {
         assert_eq!(r.run.outputs.len(), 30);
         let arr = v.arrivals_ms(30.0);
         let t = Tally::of(1, &v, &arr, &r, None);
-        assert_eq!(t.frames, 58);
+        assert_eq!(t.frames, 59);
         assert!((ms_per_frame([&t]) - 15.9).abs() < 1e-9);
         let scored = score_runs(1, &[(&v, &r)], 30.0, 0.5, None);
         assert!((scored.timing.device_ms_per_frame - 15.9).abs() < 1e-9);
-        // the clock's frames are still all the clip's
         assert_eq!(scored.timing.frames, 59);
-        // a run of one detection has no whole cycle: all of it counts
-        let one = detecting(&v, 59);
-        assert!((ms_per_frame([&Tally::of(1, &v, &arr, &one, None)]) - 1.0 / 59.0).abs() < 1e-12);
+        // one detection every 118 frames: half of it over the clip's 59 frames
+        let one = detecting(&v, 118);
+        let t = Tally::of(1, &v, &arr, &one, None);
+        assert!((ms_per_frame([&t]) - 0.5 / 59.0).abs() < 1e-12);
     }
 }

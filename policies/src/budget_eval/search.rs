@@ -20,11 +20,11 @@
 //! keeps the budget on the clock ([`SearchTrace::best_fixed`]), not only one whose
 //! segment cost fits.
 //!
-//! The clock counts whole detection cycles only ([`crate::stream::whole_cycles`]): a
-//! clip cuts its last cycle short while the detection that opens it would be charged
-//! in full. `static` detecting every 2 frames with a 31.8 ms variant costs 15.9 ms per
-//! frame in flight; charged for all 30 detections of a 59-frame clip it would cost
-//! 16.2, and a 16 ms budget would turn it away on the tuning clips.
+//! A clip cuts its last detection cycle short, so the clock charges the detection that
+//! opens it only for the part of its cycle the clip covers ([`crate::stream::charged`]).
+//! `static` detecting every 2 frames with a 31.8 ms variant costs 15.9 ms per frame in
+//! flight; charged for all 30 detections of a 59-frame clip it would cost 16.2, and a
+//! 16 ms budget would turn it away on the tuning clips.
 //!
 //! # Why
 //!

@@ -688,6 +688,15 @@ fn a_table_of_static_s_untracked_action_streams_as_static() {
                 video.id
             );
             assert_eq!(st.detect, table.detect, "budget {k} video {}", video.id);
+            // each knows the period of its last detection's action: the clip's last
+            // detection is charged for the part of that period it covers
+            let period = pol.period_of(usize::from(pol.policies[k].actions[0]));
+            assert_eq!(
+                [st.last_period, table.last_period, fixed.last_period],
+                [period; 3]
+            );
+            let (a, b) = (st.charged(60), table.charged(60));
+            assert!(a.1 == b.1 && (a.0 - b.0).abs() < 1e-9, "{a:?} {b:?}");
             assert_eq!(st.run.outputs.len(), table.run.outputs.len());
             for (a, b) in st.run.outputs.iter().zip(&table.run.outputs) {
                 assert_eq!(a.frame, b.frame);
