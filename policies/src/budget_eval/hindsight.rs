@@ -24,7 +24,7 @@ use super::search::{Figures, better_start};
 pub const SWEEPS: usize = 6;
 
 /// The figures of `choice` (per video, an index into its tallies), device ms per frame
-/// over whole detection cycles as everywhere in the budget evaluation.
+/// as the budget charges it ([`super::BudgetRun::charged`]).
 fn figures(classes: usize, tallies: &[Vec<Tally>], choice: &[usize]) -> Figures {
     let pick = || tallies.iter().zip(choice).map(|(t, &j)| &t[j]);
     let sap50 = pooled_sap50(classes, pick());

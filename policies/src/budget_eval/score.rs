@@ -110,14 +110,14 @@ pub(super) fn score_runs(
         .zip(runs.iter().map(|(_, r)| &r.run))
         .collect();
     // the budget bounds the compute charged, the clips' last cycles pro-rated
-    let (busy, cycle_frames) = runs
+    let (busy, charged_frames) = runs
         .iter()
         .zip(&arrs)
         .map(|((_, r), arr)| r.charged(arr.len()))
         .fold((0.0, 0), |(b, f), (rb, rf)| (b + rb, f + rf));
     let mut timing = timing(&pairs);
-    timing.device_ms_per_frame = if cycle_frames > 0 {
-        busy / cycle_frames as f64
+    timing.device_ms_per_frame = if charged_frames > 0 {
+        busy / charged_frames as f64
     } else {
         0.0
     };
@@ -411,8 +411,9 @@ pub fn plot_budget(stem: &std::path::Path, scores: &[BudgetScore]) -> Result<()>
 /// What scoring needs of one or more streamed runs by sAP@0.5 and device time, without
 /// streaming them again: per class, the truth boxes and the `(score, is_tp)` match
 /// records of the streamed outputs at IoU 0.5 ([`class_records`]), and the device
-/// compute and frames of video time as a budget charges them ([`BudgetRun::charged`]). Tallies add up; sAP@0.5 of pooled tallies is
-/// [`crate::stream::sap`]'s first figure on the same runs.
+/// compute and frames of video time as a budget charges them ([`BudgetRun::charged`]).
+/// Tallies add up; sAP@0.5 of pooled tallies is [`crate::stream::sap`]'s first figure
+/// on the same runs.
 #[derive(Clone, Debug, Default)]
 pub(super) struct Tally {
     records: Vec<(usize, Vec<(f32, bool)>)>,

@@ -70,7 +70,8 @@ use std::sync::Mutex;
 pub struct SearchTrace {
     /// The table it started from: `learnt`, or `fixed <variant> every <N>`.
     pub start: String,
-    /// The start's device ms per frame on the tuning clock runs. No move raises the table's cost above the larger of this and the budget.
+    /// The start's device ms per frame on the tuning clock runs. No move raises the
+    /// table's cost above the larger of this and the budget.
     #[serde(default)]
     pub start_ms_per_frame: f64,
     /// sAP@0.5 of the learnt (Lagrangian) table on the tuning clock runs.
