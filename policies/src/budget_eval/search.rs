@@ -41,7 +41,8 @@
 //! A move is kept only when it raises sAP@0.5 over every tuning video by more than
 //! [`BudgetConfig::search_min_gain`] and lowers it on neither half of them (videos
 //! alternately assigned, in id order): a change that only one half of the videos likes
-//! is noise as far as the other half can tell. A move sets one action for every state
+//! is noise as far as the other half can tell. With a single tuning video there is no
+//! other half, and the search keeps its start. A move sets one action for every state
 //! of one content state ([`crate::budget::SearchLevel::Content`], 27 groups: a
 //! behaviour per kind of scene, whatever the confidence and current variant); also for
 //! every state of one content state and confidence bucket
@@ -461,7 +462,14 @@ pub fn search_tables(
         let start_ms_per_frame = fig.ms_per_frame;
         let mut changes = 0usize;
         let groups = move_groups(cfg.search_level, states, v_n);
-        for _ in 0..cfg.search_rounds {
+        // a move must hold on both halves of the tuning videos: with fewer than two
+        // videos one half is empty, holds anything, and no move is made
+        let rounds = if clock.videos.len() >= 2 {
+            cfg.search_rounds
+        } else {
+            0
+        };
+        for _ in 0..rounds {
             let mut visits = vec![0u64; states];
             for r in runs.iter().flatten() {
                 for &(s, n) in &r.queried {

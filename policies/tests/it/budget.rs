@@ -1133,6 +1133,40 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
     }
 }
 
+/// A move must hold on both halves of the tuning videos. With one tuning video there is
+/// no second half to hold it, so the search keeps its start: on a video where moves
+/// pay, one video alone makes none.
+#[test]
+fn with_one_tuning_video_the_search_keeps_its_start() {
+    let (log, frames, mut pol) = trained();
+    pol.config.search_rounds = 2;
+    pol.config.search_level = SearchLevel::State;
+    let thresholds = EvalConfig::default().thresholds();
+    let train_videos: Vec<&VideoLog> = log.split(Split::Train).collect();
+    let search = |videos: Vec<&VideoLog>, rounds: u32| {
+        let mut p = pol.clone();
+        p.config.search_rounds = rounds;
+        let (mut policy, _) = bundled(&log, &p);
+        let sets = [TuneSet {
+            log: &log,
+            frames: &frames,
+            videos,
+        }];
+        search_tables(&sets, COST, &mut policy, thresholds, 0.5, &|| {}).unwrap()
+    };
+    // moves pay on some video when the other videos stand by
+    let all = search(train_videos.clone(), 2);
+    assert!(all.iter().any(|t| t.changes > 0), "{all:?}");
+    for v in &train_videos {
+        let alone = search(vec![*v], 2);
+        let start = search(vec![*v], 0);
+        for (a, s) in alone.iter().zip(&start) {
+            assert_eq!(a.changes, 0, "video {}: {a:?}", v.id);
+            assert_eq!((&a.start, a.sap50), (&s.start, s.sap50), "video {}", v.id);
+        }
+    }
+}
+
 /// The static baseline detects every frame, so the periods must start at 1; a bad
 /// list names the file and the key.
 #[test]
