@@ -212,10 +212,18 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
         pb.inc(1)
     })?;
     pb.finish_and_clear();
+    let tuning_videos: usize = sets.iter().map(|s| s.videos.len()).sum();
+    if tuning_videos < 2 {
+        eprintln!(
+            "note: one tuning video, so the search keeps each table's start and makes no \
+             move (a move must hold on both halves of the tuning videos); more training \
+             videos let it refine the tables"
+        );
+    }
     for (b, t) in cfg.budgets_ms.iter().zip(&traces) {
         println!(
             "budget {b} ms on the tuning clock ({} videos): learnt table sAP@0.5 {:.1}, best fixed schedule {:.1}, best untracked schedule (static) {:.1}, hindsight bound {:.1}; started from {}, {} move(s) kept over {} tables: {:.1} (halves {:.1} / {:.1}), {:.2} device ms/frame",
-            sets.iter().map(|s| s.videos.len()).sum::<usize>(),
+            tuning_videos,
             100.0 * t.learnt_sap50,
             100.0 * t.best_fixed_sap50,
             100.0 * t.best_static_sap50,
