@@ -1154,7 +1154,7 @@ fn with_one_tuning_video_the_search_keeps_its_start() {
         }];
         search_tables(&sets, COST, &mut policy, thresholds, 0.5, &|| {}).unwrap()
     };
-    // moves pay on some video when the other videos stand by
+    // with every training video, moves pay
     let all = search(train_videos.clone(), 2);
     assert!(all.iter().any(|t| t.changes > 0), "{all:?}");
     for v in &train_videos {
