@@ -304,22 +304,26 @@ pub fn timing(runs: &[(&[f64], &StreamRun)]) -> StreamTiming {
     t
 }
 
-/// Device compute charged to `run`, a stream of `frames` frames whose outputs
-/// `opens[i]` open a detection cycle: `(busy ms, frames)` from the first detection to
+/// Device compute charged to `run`, a stream of `frames` frames whose outputs `i` with
+/// `opens(i)` open a detection cycle: `(busy ms, frames)` from the first detection to
 /// the end of the stream, the last detection pro-rated by the part of its cycle, of
 /// `last_period` frames, that the stream covers. A clip cuts that cycle short while
 /// its detection would be charged in full: detecting every 2 frames over 59 frames
 /// runs 30 detections, `30 / 59` of a detection per frame where a flight runs `1 / 2`;
 /// charged half its last one, it is `29.5 / 59`. A stream that detects nothing is
 /// charged every output's compute over all its frames.
-pub fn charged(run: &StreamRun, frames: usize, opens: &[bool], last_period: u32) -> (f64, usize) {
+pub fn charged(
+    run: &StreamRun,
+    frames: usize,
+    opens: impl Fn(usize) -> bool,
+    last_period: u32,
+) -> (f64, usize) {
     let mut detections = run
         .outputs
         .iter()
-        .zip(opens)
         .enumerate()
-        .filter(|(_, (_, o))| **o)
-        .map(|(i, (out, _))| (i, out.frame));
+        .filter(|&(i, _)| opens(i))
+        .map(|(i, out)| (i, out.frame));
     let Some((first, from)) = detections.next() else {
         return (run.outputs.iter().map(|o| o.device_ms).sum(), frames);
     };
@@ -424,12 +428,12 @@ mod tests {
         let t = timing(&[(&arr, &run)]);
         assert!((t.device_ms_per_frame - 30.0 * 31.8 / 59.0).abs() < 1e-9);
         let opens = vec![true; run.outputs.len()];
-        let (busy, frames) = charged(&run, arr.len(), &opens, 2);
+        let (busy, frames) = charged(&run, arr.len(), |i| opens[i], 2);
         assert_eq!(frames, 59);
         assert!((busy / frames as f64 - 15.9).abs() < 1e-9);
         // over 60 frames the last cycle is whole: charged in full
         let arr60 = arrivals(60, 30.0);
-        let (busy, frames) = charged(&run, arr60.len(), &opens, 2);
+        let (busy, frames) = charged(&run, arr60.len(), |i| opens[i], 2);
         assert!((busy / frames as f64 - 15.9).abs() < 1e-9);
         // with a tracker step (2 ms) between: the detection is pro-rated, the steps
         // the clip holds are charged as they ran
@@ -441,7 +445,7 @@ mod tests {
         })
         .unwrap();
         let opens: Vec<bool> = run.outputs.iter().map(|o| o.frame % 2 == 0).collect();
-        let (busy, frames) = charged(&run, arr.len(), &opens, 2);
+        let (busy, frames) = charged(&run, arr.len(), |i| opens[i], 2);
         assert_eq!(frames, 59);
         assert!((busy - (29.5 * 31.8 + 29.0 * 2.0)).abs() < 1e-9);
         // one detection every 8 frames on a 3-frame clip: 3/8 of it
@@ -450,11 +454,11 @@ mod tests {
             Ok((f == 0).then(|| (vec![det(0.0)], 51.2)))
         })
         .unwrap();
-        let (busy, frames) = charged(&run, short.len(), &[true], 8);
+        let (busy, frames) = charged(&run, short.len(), |i| i == 0, 8);
         assert_eq!(frames, 3);
         assert!((busy / frames as f64 - 6.4).abs() < 1e-9);
         // nothing detected: every output over every frame
-        assert_eq!(charged(&run, 3, &[false], 8), (51.2, 3));
+        assert_eq!(charged(&run, 3, |_| false, 8), (51.2, 3));
     }
 
     #[test]

@@ -213,7 +213,7 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
     })?;
     pb.finish_and_clear();
     let tuning_videos: usize = sets.iter().map(|s| s.videos.len()).sum();
-    if tuning_videos < 2 {
+    if tuning_videos < frugal_policies::budget_eval::MIN_TUNING_VIDEOS {
         eprintln!(
             "note: one tuning video, so the search keeps each table's start and makes no \
              move (a move must hold on both halves of the tuning videos); more training \

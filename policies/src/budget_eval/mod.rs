@@ -40,7 +40,7 @@ mod search;
 pub use score::{
     BudgetScore, Margin, budget_csv, budget_margins, budget_scores, budget_table, plot_budget,
 };
-pub use search::{SearchTrace, TuneSet, search_tables};
+pub use search::{MIN_TUNING_VIDEOS, SearchTrace, TuneSet, search_tables};
 
 use score::Tally;
 
@@ -391,8 +391,8 @@ impl BudgetRun {
     /// by the part of its cycle the stream covers. A clip cuts that cycle short, and
     /// its detection would otherwise be charged in full.
     pub fn charged(&self, frames: usize) -> (f64, usize) {
-        let opens: Vec<bool> = self.detect.iter().map(Option::is_some).collect();
-        crate::stream::charged(&self.run, frames, &opens, self.last_period)
+        let opens = |i: usize| self.detect.get(i).is_some_and(Option::is_some);
+        crate::stream::charged(&self.run, frames, opens, self.last_period)
     }
 }
 

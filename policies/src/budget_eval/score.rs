@@ -110,17 +110,12 @@ pub(super) fn score_runs(
         .zip(runs.iter().map(|(_, r)| &r.run))
         .collect();
     // the budget bounds the compute charged, the clips' last cycles pro-rated
-    let (busy, charged_frames) = runs
-        .iter()
-        .zip(&arrs)
-        .map(|((_, r), arr)| r.charged(arr.len()))
-        .fold((0.0, 0), |(b, f), (rb, rf)| (b + rb, f + rf));
     let mut timing = timing(&pairs);
-    timing.device_ms_per_frame = if charged_frames > 0 {
-        busy / charged_frames as f64
-    } else {
-        0.0
-    };
+    timing.device_ms_per_frame = per_frame(
+        runs.iter()
+            .zip(&arrs)
+            .map(|((_, r), arr)| r.charged(arr.len())),
+    );
     Scored {
         sap50,
         sap,
@@ -501,9 +496,12 @@ pub(super) fn pooled_sap50<'t>(
 
 /// Device ms per frame of `tallies` pooled (0 without frames).
 pub(super) fn ms_per_frame<'t>(tallies: impl IntoIterator<Item = &'t Tally>) -> f64 {
-    let (busy, frames) = tallies
-        .into_iter()
-        .fold((0.0, 0), |(b, f), t| (b + t.busy_ms, f + t.frames));
+    per_frame(tallies.into_iter().map(|t| (t.busy_ms, t.frames)))
+}
+
+/// Device ms per frame of `(busy ms, frames)` charges pooled (0 without frames).
+fn per_frame(charges: impl Iterator<Item = (f64, usize)>) -> f64 {
+    let (busy, frames) = charges.fold((0.0, 0), |(b, f), (cb, cf)| (b + cb, f + cf));
     if frames > 0 {
         busy / frames as f64
     } else {

@@ -66,6 +66,10 @@ use frugal_runtime::schedule::CONTENT_STATES;
 use serde::{Deserialize, Serialize};
 use std::sync::Mutex;
 
+/// Tuning videos the search needs before it makes a move: a move must hold on both
+/// halves of them, and with one video the second half is empty and holds anything.
+pub const MIN_TUNING_VIDEOS: usize = 2;
+
 /// What the search on the clock did for one budget.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SearchTrace {
@@ -462,9 +466,7 @@ pub fn search_tables(
         let start_ms_per_frame = fig.ms_per_frame;
         let mut changes = 0usize;
         let groups = move_groups(cfg.search_level, states, v_n);
-        // a move must hold on both halves of the tuning videos: with fewer than two
-        // videos one half is empty, holds anything, and no move is made
-        let rounds = if clock.videos.len() >= 2 {
+        let rounds = if clock.videos.len() >= MIN_TUNING_VIDEOS {
             cfg.search_rounds
         } else {
             0
