@@ -89,7 +89,7 @@ pub struct NoisyPoint {
     pub accuracy: f64,
     /// Standard error of `accuracy` (the report's comes from a bootstrap over videos).
     pub accuracy_se: f64,
-    /// Latency, lower is better (milliseconds, the median).
+    /// Latency, lower is better (milliseconds; the report's is the fastest run).
     pub latency: f64,
     /// Latency differences up to this many milliseconds are noise (the report uses
     /// [`Latency::noise_ms`](crate::stats::Latency::noise_ms)).
@@ -395,7 +395,7 @@ mod tests {
         }
     }
 
-    /// Latency noise as the report computes it: the spread, at least 5 % of the median.
+    /// Latency noise as the report computes it: the spread, at least 5 % of the cost.
     fn measured(name: &'static str, ms: f64, map: f64, spread: f64, se: f64) -> Named {
         Named {
             name,

@@ -13,11 +13,14 @@
 //! front is the cheapest: variants are taken fastest first, each kept if the rest
 //! can still be completed into such a set.
 //!
+//! - **Latency** of a variant ([`Latency::cost_ms`]): the fastest of its timed runs
+//!   (one per validation frame, variants interleaved frame by frame). Other work on
+//!   a shared machine only adds time, so the fastest run is the least disturbed; it
+//!   is the cost on the front, in the variants file and, scaled, on the device.
 //! - **Latency noise** of a variant ([`Latency::noise_ms`]): the spread of its timed
-//!   runs (one per validation frame, variants interleaved frame by frame), half the
-//!   inter-decile range `(p90 − p10) / 2`, but at least 5 % of its median
-//!   ([`stats::LATENCY_NOISE_FLOOR`]). Two medians are within noise when they differ
-//!   by no more than the larger of the two noises. The floor is there because the
+//!   runs, half the inter-decile range `(p90 − p10) / 2`, but at least 5 % of its
+//!   cost ([`stats::LATENCY_NOISE_FLOOR`]). Two costs are within noise when they
+//!   differ by no more than the larger of the two noises. The floor is there because the
 //!   spread within one pass says little about the drift between passes: two runs on
 //!   one host (the README's variant table and its flight grid) timed p20, p20-int8
 //!   and ch50-int8 13-16 % slower in the second, yet the ratios between them moved

@@ -33,7 +33,7 @@ pub struct FrontPlot<'a> {
     pub title: &'a str,
     /// The accuracy axis (y) name, e.g. `"mAP@0.5"`.
     pub accuracy_label: &'a str,
-    /// The latency axis (x) name, e.g. `"latency, median ms (ONNX Runtime, 1 thread)"`.
+    /// The latency axis (x) name, e.g. `"latency, ms (ONNX Runtime, 1 thread)"`.
     pub latency_label: &'a str,
     /// Every variant: its label and position.
     pub points: &'a [(String, Point)],

@@ -66,14 +66,15 @@ struct Entry {
 
 #[derive(Serialize)]
 struct File {
-    /// The reference detector's median latency on the same machine, same timing.
+    /// The reference detector's latency (fastest run) on the same machine, same timing.
     reference_ms: f64,
     variants: Vec<Entry>,
 }
 
 /// The variants file of `frugal policy record` (`{"reference_ms", "variants":
 /// [{"name", "family": "cnn", "latency_ms", "source": {"kind": "onnx", "dir"}}]}`) for
-/// `(variant, median latency)` pairs and the reference detector's median latency
+/// `(variant, latency)` pairs and the reference detector's latency (each the fastest
+/// of its timed runs, [`Latency::cost_ms`](crate::stats::Latency::cost_ms))
 /// ([`frugal_models::onnx::export_reference`]) timed with them, written atomically.
 pub fn write_variants_file(
     path: &Path,

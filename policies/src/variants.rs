@@ -132,7 +132,7 @@ pub struct VariantInfo {
     pub name: String,
     /// Index into the family list.
     pub family: usize,
-    /// Measured median latency per frame, ms.
+    /// Measured latency per frame, ms (the Pareto stage's fastest timed run).
     pub latency_ms: f64,
     /// `latency_ms` over the cheapest variant's (`r(s)` in the reward), `>= 1`.
     pub relative_cost: f64,

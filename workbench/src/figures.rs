@@ -49,7 +49,7 @@ pub fn collect(run: &Path) -> Figures {
         put("variants.count".into(), Some(vs.len().to_string()));
         let lat: Vec<f64> = vs
             .iter()
-            .filter_map(|v| v["latency"]["median_ms"].as_f64())
+            .filter_map(|v| v["latency"]["min_ms"].as_f64())
             .collect();
         if !lat.is_empty() {
             let lo = lat.iter().copied().fold(f64::INFINITY, f64::min);
@@ -59,14 +59,14 @@ pub fn collect(run: &Path) -> Figures {
         }
         put(
             "device.reference_ms".into(),
-            f(&p["reference"]["median_ms"], 2),
+            f(&p["reference"]["min_ms"], 2),
         );
         if let Some(front) = p["fronts"]["map"].as_array() {
             let names: Vec<&str> = front.iter().filter_map(Value::as_str).collect();
             put("front.map".into(), Some(names.join(" → ")));
             for name in names {
                 if let Some(v) = vs.iter().find(|v| v["name"] == name) {
-                    put(format!("front.{name}.ms"), f(&v["latency"]["median_ms"], 2));
+                    put(format!("front.{name}.ms"), f(&v["latency"]["min_ms"], 2));
                     put(format!("front.{name}.map"), f(&v["map"], 3));
                     put(format!("front.{name}.map_se"), f(&v["map_se"], 3));
                 }

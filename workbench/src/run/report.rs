@@ -100,7 +100,7 @@ fn headline(run: &Path, flights: &[FlightRow]) -> String {
         let vs = p["variants"].as_array().cloned().unwrap_or_default();
         let lat: Vec<f64> = vs
             .iter()
-            .filter_map(|v| v["latency"]["median_ms"].as_f64())
+            .filter_map(|v| v["latency"]["min_ms"].as_f64())
             .collect();
         let (lo, hi) = lat
             .iter()
@@ -243,7 +243,7 @@ pub(crate) fn write(ctx: &Ctx, outcomes: &[Outcome], seconds: f64) -> anyhow::Re
             "map",
             "f1",
             "mean_iou",
-            "latency_median_ms",
+            "latency_ms",
             "front_map",
         ],
     ) {
