@@ -324,8 +324,8 @@ pub struct VariantEntry {
     pub name: String,
     /// Its family's name.
     pub family: String,
-    /// Measured median latency per frame, ms (`> 0`); when absent, `policy record`
-    /// times the detector itself (one thread, median over sample frames).
+    /// Measured latency per frame, ms (`> 0`); when absent, `policy record` times the
+    /// detector itself (one thread, the fastest of its runs over sample frames).
     #[serde(default)]
     pub latency_ms: Option<f64>,
     /// Where the detector comes from.
@@ -479,7 +479,7 @@ impl VariantSet {
 
     /// The set of a variants file: synthetic detectors are built here, every other
     /// kind (ONNX, HoG) by the caller through `open`. The variants without a latency are
-    /// timed together by `time` (median ms per frame each, in the order given), so a
+    /// timed together by `time` (ms per frame each, in the order given), so a
     /// timing harness can interleave them and a change of machine load hits them alike.
     pub fn from_file(
         file: &VariantsFile,
