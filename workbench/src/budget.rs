@@ -215,9 +215,10 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
     let tuning_videos: usize = sets.iter().map(|s| s.videos.len()).sum();
     if tuning_videos < frugal_policies::budget_eval::MIN_TUNING_VIDEOS {
         eprintln!(
-            "note: one tuning video, so the search keeps each table's start and makes no \
-             move (a move must hold on both halves of the tuning videos); more training \
-             videos let it refine the tables"
+            "note: {tuning_videos} tuning video(s), fewer than the {} a move needs, so the \
+             search keeps each table's start and makes no move (a move must hold on both \
+             halves of the tuning videos); more training videos let it refine the tables",
+            frugal_policies::budget_eval::MIN_TUNING_VIDEOS
         );
     }
     for (b, t) in cfg.budgets_ms.iter().zip(&traces) {

@@ -9,6 +9,8 @@
 //! them, so a figure is generated, never typed.
 use anyhow::Context;
 use clap::{Args, Subcommand};
+use frugal_pareto::stats::Latency;
+use serde::Deserialize;
 use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -22,6 +24,26 @@ fn read_json(path: &Path) -> Option<Value> {
 
 fn f(v: &Value, digits: usize) -> Option<String> {
     v.as_f64().map(|x| format!("{x:.digits$}"))
+}
+
+/// The cost of a `pareto.json` latency record, as the Pareto stage charges it
+/// ([`Latency::cost_ms`]); `None` when the record does not read.
+fn cost_ms(latency: &Value) -> Option<f64> {
+    Latency::deserialize(latency).ok().map(|l| l.cost_ms())
+}
+
+/// The cheapest and the dearest cost over a `pareto.json`'s variants; `None` without
+/// any.
+pub(crate) fn cost_range(variants: &[Value]) -> Option<(f64, f64)> {
+    let costs: Vec<f64> = variants
+        .iter()
+        .filter_map(|v| cost_ms(&v["latency"]))
+        .collect();
+    (!costs.is_empty()).then(|| {
+        costs
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(l, h), &x| (l.min(x), h.max(x)))
+    })
 }
 
 fn signed(x: f64) -> String {
@@ -47,26 +69,23 @@ pub fn collect(run: &Path) -> Figures {
     if let Some(p) = read_json(&run.join("pareto/pareto.json")) {
         let vs = p["variants"].as_array().cloned().unwrap_or_default();
         put("variants.count".into(), Some(vs.len().to_string()));
-        let lat: Vec<f64> = vs
-            .iter()
-            .filter_map(|v| v["latency"]["min_ms"].as_f64())
-            .collect();
-        if !lat.is_empty() {
-            let lo = lat.iter().copied().fold(f64::INFINITY, f64::min);
-            let hi = lat.iter().copied().fold(0.0, f64::max);
+        if let Some((lo, hi)) = cost_range(&vs) {
             put("variants.fastest_ms".into(), Some(format!("{lo:.2}")));
             put("variants.slowest_ms".into(), Some(format!("{hi:.2}")));
         }
         put(
             "device.reference_ms".into(),
-            f(&p["reference"]["min_ms"], 2),
+            cost_ms(&p["reference"]).map(|ms| format!("{ms:.2}")),
         );
         if let Some(front) = p["fronts"]["map"].as_array() {
             let names: Vec<&str> = front.iter().filter_map(Value::as_str).collect();
             put("front.map".into(), Some(names.join(" → ")));
             for name in names {
                 if let Some(v) = vs.iter().find(|v| v["name"] == name) {
-                    put(format!("front.{name}.ms"), f(&v["latency"]["min_ms"], 2));
+                    put(
+                        format!("front.{name}.ms"),
+                        cost_ms(&v["latency"]).map(|ms| format!("{ms:.2}")),
+                    );
                     put(format!("front.{name}.map"), f(&v["map"], 3));
                     put(format!("front.{name}.map_se"), f(&v["map_se"], 3));
                 }

@@ -98,13 +98,7 @@ fn headline(run: &Path, flights: &[FlightRow]) -> String {
     }
     if let Some(p) = read_json(&run.join("pareto/pareto.json")) {
         let vs = p["variants"].as_array().cloned().unwrap_or_default();
-        let lat: Vec<f64> = vs
-            .iter()
-            .filter_map(|v| v["latency"]["min_ms"].as_f64())
-            .collect();
-        let (lo, hi) = lat
-            .iter()
-            .fold((f64::INFINITY, 0.0f64), |(l, h), &x| (l.min(x), h.max(x)));
+        let (lo, hi) = crate::figures::cost_range(&vs).unwrap_or((f64::INFINITY, 0.0));
         let front = p["fronts"]["map"]
             .as_array()
             .map(|f| {
