@@ -113,6 +113,17 @@ pub struct VariantResult {
     pub merged_into: BTreeMap<String, Option<String>>,
 }
 
+/// Every timed run (`timings.json`), ms: per timed validation frame (`frames`, indices
+/// into the frames measured), each variant's run and then the reference detector's, in
+/// that order, so that any estimator of a variant's cost, or of its ratio to the
+/// reference, can be tried on a pass without timing it again.
+#[derive(Serialize)]
+struct Timings<'a> {
+    frames: Vec<usize>,
+    reference_ms: &'a [f64],
+    variants: BTreeMap<&'a str, &'a [f64]>,
+}
+
 /// What `frugal pareto` is asked to do.
 #[derive(Clone, Debug)]
 pub struct ParetoOptions {
@@ -300,7 +311,7 @@ fn detect_frame(
 }
 
 /// Measure every variant in `opts.variants` and write `pareto.json`, `pareto.csv`,
-/// `confidence.json`, the plots `pareto_{map,f1,iou}.{png,svg}` and `variants.json`
+/// `confidence.json`, `timings.json`, the plots `pareto_{map,f1,iou}.{png,svg}` and `variants.json`
 /// (the mAP front, for `frugal policy record`).
 pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
     let variants = crate::variants::read_variants(&opts.variants)?;
@@ -565,6 +576,17 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
         .map(|r| (r.name.as_str(), &r.confidence))
         .collect();
     write_json(&opts.out.join("confidence.json"), &conf)?;
+    let timings = Timings {
+        frames: timed.clone(),
+        reference_ms: &reference_ms,
+        variants: report
+            .variants
+            .iter()
+            .zip(&samples)
+            .map(|(r, s)| (r.name.as_str(), s.as_slice()))
+            .collect(),
+    };
+    write_json(&opts.out.join("timings.json"), &timings)?;
     write_atomic(&opts.out.join("pareto.csv"), csv(&report).as_bytes())?;
     let on_map: Vec<(&VariantDir, f64)> = report.fronts["map"]
         .iter()

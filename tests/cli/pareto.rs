@@ -224,6 +224,23 @@ fn compress_then_pareto_on_a_tiny_model() {
         assert!(v["latency_ms"].as_f64().unwrap() > 0.0);
     }
     assert_eq!(report["timed_frames"], 4);
+    // every timed run is kept, frame by frame, and summarised as reported
+    let t = json(&out.join("timings.json"));
+    assert_eq!(t["frames"], serde_json::json!([0, 1, 2, 3]));
+    assert_eq!(t["reference_ms"].as_array().unwrap().len(), 4);
+    let fastest = |runs: &serde_json::Value| {
+        runs.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .fold(f64::INFINITY, f64::min)
+    };
+    assert_eq!(fastest(&t["reference_ms"]), report["reference"]["min_ms"]);
+    for v in vs {
+        let runs = &t["variants"][v["name"].as_str().unwrap()];
+        assert_eq!(runs.as_array().unwrap().len(), 4, "{}", v["name"]);
+        assert_eq!(fastest(runs), v["latency"]["min_ms"], "{}", v["name"]);
+    }
 
     // timing one frame and scoring the other three on every core changes the timings
     // only: every variant's accuracy and confidences are those of the all-timed pass

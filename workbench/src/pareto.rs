@@ -62,7 +62,7 @@ pub fn run(args: ParetoArgs) -> anyhow::Result<()> {
         println!("front ({metric}): {}", names.join(" → "));
     }
     println!(
-        "{} variants × {} validation frames ({} timed); wrote {}/pareto.json, pareto.csv, pareto_*.png|svg, confidence.json, variants.json",
+        "{} variants × {} validation frames ({} timed); wrote {}/pareto.json, pareto.csv, pareto_*.png|svg, confidence.json, timings.json, variants.json",
         report.variants.len(),
         report.frames,
         report.timed_frames,
