@@ -616,6 +616,41 @@ mod tests {
     }
 
     #[test]
+    fn a_pass_timed_beside_other_work_keeps_its_front() {
+        // A pass timed while two other cores' worth of work ran (fastest run ms,
+        // spread ms, mAP@0.5 and its SE): single runs spread by 35-70 % of the
+        // fastest, the reference detector's by 59 %.
+        let raw = [
+            ("ch50-p10-res075-int8", 3.22, 2.12, 0.884, 0.038),
+            ("ch50-p10-int8", 3.26, 2.23, 0.945, 0.028),
+            ("ch50-int8", 5.79, 2.21, 0.957, 0.024),
+            ("ch75-p20-int8", 6.36, 4.29, 0.980, 0.009),
+            ("p20-int8", 8.77, 4.66, 0.990, 0.007),
+        ];
+        // with the spreads as the noise, every latency is within noise of every
+        // other: ch75-p20-int8 outclasses the three cheaper variants, and p20-int8 is
+        // within noise of it in both coordinates, so it alone is left
+        let uncapped: Vec<NoisyPoint> = raw
+            .iter()
+            .map(|&(_, ms, spread, map, se)| np(ms, map, spread, se))
+            .collect();
+        assert_eq!(front_within_noise(&uncapped), vec![3]);
+        // capped at 15 % of the cost, the front of the quiet passes
+        let set: Vec<Named> = raw
+            .iter()
+            .map(|&(name, ms, spread, map, se)| measured(name, ms, map, spread / ms, se))
+            .collect();
+        let pts: Vec<NoisyPoint> = set.iter().map(|n| n.point).collect();
+        assert!(
+            pts.iter()
+                .all(|p| p.latency_noise <= 0.15 * p.latency + 1e-12)
+        );
+        let f = front_within_noise(&pts);
+        assert_eq!(names(&set, &f), ["ch50-p10-int8", "ch75-p20-int8"]);
+        assert_valid(&pts, &f);
+    }
+
+    #[test]
     fn an_outclassed_point_takes_a_place_only_where_nothing_else_covers_it() {
         // b outclasses a (3 ms faster, beyond the noise; 0.04 less accurate, within
         // the combined SE of 0.054), and c outclasses b (4 ms faster; 0.05 less

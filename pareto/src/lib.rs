@@ -19,7 +19,9 @@
 //!   is the cost on the front, in the variants file and, scaled, on the device.
 //! - **Latency noise** of a variant ([`Latency::noise_ms`]): the spread of its timed
 //!   runs, half the inter-decile range `(p90 − p10) / 2`, but at least 5 % of its
-//!   cost ([`stats::LATENCY_NOISE_FLOOR`]). Two costs are within noise when they
+//!   cost ([`stats::LATENCY_NOISE_FLOOR`]) and at most 15 %
+//!   ([`stats::LATENCY_NOISE_CEILING`]: a wider spread measures other work on the
+//!   machine, not how far the fastest run moves). Two costs are within noise when they
 //!   differ by no more than the larger of the two noises. The floor is there because the
 //!   spread within one pass says little about the drift between passes: two runs on
 //!   one host (the README's variant table and its flight grid) timed p20, p20-int8

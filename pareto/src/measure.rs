@@ -166,6 +166,8 @@ pub struct ParetoReport {
     pub bootstrap_resamples: usize,
     /// Relative floor of the latency noise ([`crate::stats::LATENCY_NOISE_FLOOR`]).
     pub latency_noise_floor: f64,
+    /// Relative ceiling of the latency noise ([`crate::stats::LATENCY_NOISE_CEILING`]).
+    pub latency_noise_ceiling: f64,
     /// ONNX Runtime threads.
     pub threads: usize,
     /// Latency of the reference detector ([`frugal_models::onnx::export_reference`]),
@@ -563,6 +565,7 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
         videos,
         bootstrap_resamples: resamples.len(),
         latency_noise_floor: crate::stats::LATENCY_NOISE_FLOOR,
+        latency_noise_ceiling: crate::stats::LATENCY_NOISE_CEILING,
         threads: opts.threads,
         reference,
         variants: out,
@@ -831,6 +834,7 @@ mod tests {
             videos: 12,
             bootstrap_resamples: BOOTSTRAP_RESAMPLES,
             latency_noise_floor: crate::stats::LATENCY_NOISE_FLOOR,
+            latency_noise_ceiling: crate::stats::LATENCY_NOISE_CEILING,
             threads: 1,
             reference: Latency::from_samples(&[32.0, 33.0]).unwrap(),
             variants: out,
