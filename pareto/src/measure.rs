@@ -119,7 +119,7 @@ pub struct VariantResult {
 /// reference, can be tried on a pass without timing it again.
 #[derive(Serialize)]
 struct Timings<'a> {
-    frames: Vec<usize>,
+    frames: &'a [usize],
     reference_ms: &'a [f64],
     variants: BTreeMap<&'a str, &'a [f64]>,
 }
@@ -580,7 +580,7 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
         .collect();
     write_json(&opts.out.join("confidence.json"), &conf)?;
     let timings = Timings {
-        frames: timed.clone(),
+        frames: &timed,
         reference_ms: &reference_ms,
         variants: report
             .variants
