@@ -223,7 +223,7 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
     }
     for (b, t) in cfg.budgets_ms.iter().zip(&traces) {
         println!(
-            "budget {b} ms on the tuning clock ({} videos): learnt table sAP@0.5 {:.1}, best fixed schedule {:.1}, best untracked schedule (static) {:.1}, hindsight bound {:.1}; started from {}, {} move(s) kept over {} tables: {:.1} (halves {:.1} / {:.1}), {:.2} device ms/frame",
+            "budget {b} ms on the tuning clock ({} videos): learnt table sAP@0.5 {:.1}, best fixed schedule {:.1}, best untracked schedule (static) {:.1}, hindsight bound {:.1}; started from {}, {} move(s) kept over {} tables in {} sweep(s) (at most {}): {:.1} (halves {:.1} / {:.1}), {:.2} device ms/frame",
             tuning_videos,
             100.0 * t.learnt_sap50,
             100.0 * t.best_fixed_sap50,
@@ -232,6 +232,8 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
             t.start,
             t.changes,
             t.tables,
+            t.sweeps,
+            cfg.search_rounds,
             100.0 * t.sap50,
             100.0 * t.halves_sap50[0],
             100.0 * t.halves_sap50[1],

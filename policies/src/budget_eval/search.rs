@@ -126,6 +126,12 @@ pub struct SearchTrace {
     pub changes: usize,
     /// Tables streamed.
     pub tables: usize,
+    /// Sweeps over the groups the search ran, the last one included: a sweep that keeps
+    /// no move ends it. Equal to [`BudgetConfig::search_rounds`] with moves kept in the
+    /// last sweep, the limit cut the search short; below it, the search had converged.
+    /// 0 in policies searched before it was kept.
+    #[serde(default)]
+    pub sweeps: u32,
 }
 
 /// One table's figures on the tuning clock runs.
@@ -465,6 +471,7 @@ pub fn search_tables(
         let (start, mut table, mut runs, mut fig) = best;
         let start_ms_per_frame = fig.ms_per_frame;
         let mut changes = 0usize;
+        let mut sweeps = 0u32;
         let groups = move_groups(cfg.search_level, states, v_n);
         let rounds = if clock.videos.len() >= MIN_TUNING_VIDEOS {
             cfg.search_rounds
@@ -472,6 +479,7 @@ pub fn search_tables(
             0
         };
         for _ in 0..rounds {
+            sweeps += 1;
             let mut visits = vec![0u64; states];
             for r in runs.iter().flatten() {
                 for &(s, n) in &r.queried {
@@ -580,6 +588,7 @@ pub fn search_tables(
             device_ms_per_frame: fig.ms_per_frame,
             changes,
             tables,
+            sweeps,
         });
     }
     if let Some(b) = policy.budget.as_mut() {

@@ -1099,6 +1099,12 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
     let traces0 = search_tables(&sets, COST, &mut bare, thresholds, 0.5, &|| {}).unwrap();
     for (t0, t) in traces0.iter().zip(&traces) {
         assert_eq!(t0.changes, 0);
+        assert_eq!(t0.sweeps, 0);
+        // a sweep that keeps no move ends the search, and there are at most two
+        assert!((1..=2).contains(&t.sweeps), "{t:?}");
+        if t.changes == 0 {
+            assert_eq!(t.sweeps, 1, "{t:?}");
+        }
         assert_eq!(t0.start, t.start);
         assert!(t.sap50 >= t0.sap50 - 1e-12);
     }
