@@ -114,13 +114,14 @@ pub struct VariantResult {
 }
 
 /// Every timed run (`timings.json`), ms: per timed validation frame (`frames`, indices
-/// into the frames measured), each variant's run and then the reference detector's, in
-/// that order, so that any estimator of a variant's cost, or of its ratio to the
+/// into the frames measured), each variant's run and then the reference detectors'
+/// (fp32, then int8), in that order, so that any estimator of a variant's cost, or of its ratio to the
 /// reference, can be tried on a pass without timing it again.
 #[derive(Serialize)]
 struct Timings<'a> {
     frames: &'a [usize],
     reference_ms: &'a [f64],
+    reference_int8_ms: &'a [f64],
     variants: BTreeMap<&'a str, &'a [f64]>,
 }
 
@@ -174,6 +175,10 @@ pub struct ParetoReport {
     /// timed on the same frames in turn with the variants: what a device profile scales
     /// from.
     pub reference: Latency,
+    /// Latency of the int8 reference detector
+    /// ([`frugal_models::onnx::export_reference_int8`]), timed with them too: what a
+    /// device profile scales the int8 variants from.
+    pub reference_int8: Latency,
     /// Every variant.
     pub variants: Vec<VariantResult>,
     /// Per metric: names on the noise-aware front, fastest first (`variants.json`
@@ -338,16 +343,22 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
     };
     let mut dets = open_all()?;
     let k = variants.len();
-    // the reference detector, timed with the variants (last in the rotation) and
-    // scored by nobody: how fast this machine runs the detector a device profile's
-    // speed is stated in
-    let reference_dir = opts.out.join(".reference");
-    frugal_models::onnx::export_reference(&reference_dir)
+    // the reference detectors, fp32 then int8, timed with the variants (last in the
+    // rotation) and scored by nobody: how fast this machine runs the detectors a device
+    // profile's speed is stated in
+    let reference_dirs = [
+        opts.out.join(".reference"),
+        opts.out.join(".reference-int8"),
+    ];
+    frugal_models::onnx::export_reference(&reference_dirs[0])
         .map_err(|e| ParetoError::Input(format!("the reference detector: {e}")))?;
-    dets.push(
-        OrtDetector::open(&reference_dir, opts.threads)
-            .map_err(|e| ParetoError::Input(e.to_string()))?,
-    );
+    frugal_models::onnx::export_reference_int8(&reference_dirs[1])
+        .map_err(|e| ParetoError::Input(format!("the int8 reference detector: {e}")))?;
+    for dir in &reference_dirs {
+        dets.push(
+            OrtDetector::open(dir, opts.threads).map_err(|e| ParetoError::Input(e.to_string()))?,
+        );
+    }
     // the frames to time, spread evenly (ascending), and the others
     let timed = spread((0..n).collect(), opts.timed_frames);
     let untimed: Vec<usize> = (0..n).filter(|i| timed.binary_search(i).is_err()).collect();
@@ -377,16 +388,23 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
         )?);
         tick();
     }
-    drop(dets.pop()); // the reference's session; its files go next
-    std::fs::remove_dir_all(&reference_dir).map_err(|e| ParetoError::io(&reference_dir, e))?;
+    // the references' sessions, then their files
+    dets.truncate(k);
+    for dir in &reference_dirs {
+        std::fs::remove_dir_all(dir).map_err(|e| ParetoError::io(dir, e))?;
+    }
     let mut reference_ms = Vec::with_capacity(timed.len());
+    let mut reference_int8_ms = Vec::with_capacity(timed.len());
     for f in found.iter_mut().flatten() {
-        if let Some((_, Some(ms))) = f.pop() {
-            reference_ms.push(ms);
+        if let (Some((_, Some(i8))), Some((_, Some(f32)))) = (f.pop(), f.pop()) {
+            reference_int8_ms.push(i8);
+            reference_ms.push(f32);
         }
     }
     let reference = Latency::from_samples(&reference_ms)
         .ok_or_else(|| ParetoError::Input("no timings of the reference detector".into()))?;
+    let reference_int8 = Latency::from_samples(&reference_int8_ms)
+        .ok_or_else(|| ParetoError::Input("no timings of the int8 reference detector".into()))?;
     // 2. the other frames, accuracy only, split over the workers
     let parts: Vec<Vec<(usize, FrameOutcome)>> = std::thread::scope(|sc| {
         let mut own = Some(&mut dets);
@@ -568,6 +586,7 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
         latency_noise_ceiling: crate::stats::LATENCY_NOISE_CEILING,
         threads: opts.threads,
         reference,
+        reference_int8,
         variants: out,
         fronts,
         plain_fronts,
@@ -582,6 +601,7 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
     let timings = Timings {
         frames: &timed,
         reference_ms: &reference_ms,
+        reference_int8_ms: &reference_int8_ms,
         variants: report
             .variants
             .iter()
@@ -602,6 +622,7 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
         &opts.out.join("variants.json"),
         &on_map,
         report.reference.cost_ms(),
+        report.reference_int8.cost_ms(),
     )?;
     if let Some(docs) = &opts.docs_png {
         let src = opts.out.join("pareto_map.png");
@@ -693,6 +714,10 @@ pub fn table(r: &ParetoReport) -> String {
     s.push_str(&format!(
         "reference detector (default architecture, fp32, 480×270): {:.2} ms fastest, {:.2} median, {:.2} p90\n",
         r.reference.cost_ms(), r.reference.median_ms, r.reference.p90_ms
+    ));
+    s.push_str(&format!(
+        "reference detector, int8 (the same, quantized as the int8 variants): {:.2} ms fastest, {:.2} median, {:.2} p90\n",
+        r.reference_int8.cost_ms(), r.reference_int8.median_ms, r.reference_int8.p90_ms
     ));
     s
 }
@@ -837,6 +862,7 @@ mod tests {
             latency_noise_ceiling: crate::stats::LATENCY_NOISE_CEILING,
             threads: 1,
             reference: Latency::from_samples(&[32.0, 33.0]).unwrap(),
+            reference_int8: Latency::from_samples(&[20.0, 21.0]).unwrap(),
             variants: out,
             fronts,
             plain_fronts,

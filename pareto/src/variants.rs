@@ -61,6 +61,7 @@ struct Entry {
     name: String,
     family: &'static str,
     latency_ms: f64,
+    precision: &'static str,
     source: Source,
 }
 
@@ -68,27 +69,34 @@ struct Entry {
 struct File {
     /// The reference detector's latency (fastest run) on the same machine, same timing.
     reference_ms: f64,
+    /// The int8 reference detector's, the same way.
+    reference_int8_ms: f64,
     variants: Vec<Entry>,
 }
 
-/// The variants file of `frugal policy record` (`{"reference_ms", "variants":
-/// [{"name", "family": "cnn", "latency_ms", "source": {"kind": "onnx", "dir"}}]}`) for
-/// `(variant, latency)` pairs and the reference detector's latency (each the fastest
-/// of its timed runs, [`Latency::cost_ms`](crate::stats::Latency::cost_ms))
-/// ([`frugal_models::onnx::export_reference`]) timed with them, written atomically.
+/// The variants file of `frugal policy record` (`{"reference_ms", "reference_int8_ms",
+/// "variants": [{"name", "family": "cnn", "latency_ms", "precision": "int8" | "fp32",
+/// "source": {"kind": "onnx", "dir"}}]}`) for `(variant, latency)` pairs and the
+/// reference detectors' latencies, fp32 and int8 (each the fastest of its timed runs,
+/// [`Latency::cost_ms`](crate::stats::Latency::cost_ms))
+/// ([`frugal_models::onnx::export_reference`], [`export_reference_int8`](frugal_models::onnx::export_reference_int8))
+/// timed with them, written atomically.
 pub fn write_variants_file(
     path: &Path,
     variants: &[(&VariantDir, f64)],
     reference_ms: f64,
+    reference_int8_ms: f64,
 ) -> Result<(), ParetoError> {
     let file = File {
         reference_ms,
+        reference_int8_ms,
         variants: variants
             .iter()
             .map(|(v, ms)| Entry {
                 name: v.record.name.clone(),
                 family: "cnn",
                 latency_ms: *ms,
+                precision: if v.record.int8 { "int8" } else { "fp32" },
                 source: Source {
                     kind: "onnx",
                     dir: std::path::absolute(&v.dir).unwrap_or_else(|_| v.dir.clone()),

@@ -205,6 +205,7 @@ mod tests {
             family: 0,
             latency_ms: ms,
             relative_cost: ms,
+            precision: Default::default(),
             source: VariantSource::Onnx { dir: "x".into() },
         };
         ReplayLog {
@@ -219,6 +220,7 @@ mod tests {
             variants: vec![info("cheap", 1.0), info("good", 4.0)],
             max_detections: 8,
             reference_ms: None,
+            reference_int8_ms: None,
             videos: vec![VideoLog {
                 id: 0,
                 clutter: Clutter::Low,

@@ -39,7 +39,8 @@
 //! let spec = |seed, score| SyntheticSpec { seed, score, ..SyntheticSpec::default() };
 //! let family = FamilyInfo { name: "cnn".into(), buckets: CNN_BUCKETS };
 //! let info = |name: &str, ms, s: &SyntheticSpec| VariantInfo { name: name.into(), family: 0,
-//!     latency_ms: ms, relative_cost: 1.0, source: VariantSource::Synthetic(s.clone()) };
+//!     latency_ms: ms, relative_cost: 1.0, precision: Default::default(),
+//!     source: VariantSource::Synthetic(s.clone()) };
 //! let (cheap, costly) = (spec(1, [0.6, 0.8]), spec(2, [0.95, 1.0]));
 //! let mut set = VariantSet::new(
 //!     vec![family],

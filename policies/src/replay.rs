@@ -163,6 +163,10 @@ pub struct ReplayLog {
     /// file gave none.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reference_ms: Option<f64>,
+    /// The same for the int8 reference detector: what the device's int8 speed is scaled
+    /// from ([`crate::budget::BudgetConfig::device_slowdown_int8`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_int8_ms: Option<f64>,
     /// The videos.
     pub videos: Vec<VideoLog>,
 }
@@ -547,6 +551,7 @@ pub fn record(
         variants: set.variants.clone(),
         max_detections,
         reference_ms: None,
+        reference_int8_ms: None,
         videos,
     })
 }

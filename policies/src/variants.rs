@@ -124,6 +124,18 @@ pub enum VariantSource {
     Synthetic(SyntheticSpec),
 }
 
+/// The arithmetic a variant's graphs run in: a device profile states its speed for each
+/// ([`crate::budget::BudgetConfig::device_reference_int8_ms`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Precision {
+    /// Floating point (and any detector that is not an int8 graph).
+    #[default]
+    Fp32,
+    /// int8 QDQ graphs.
+    Int8,
+}
+
 /// A variant's description (everything but the detector itself).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -136,8 +148,15 @@ pub struct VariantInfo {
     pub latency_ms: f64,
     /// `latency_ms` over the cheapest variant's (`r(s)` in the reward), `>= 1`.
     pub relative_cost: f64,
+    /// Its arithmetic (logs written before it was recorded read as fp32).
+    #[serde(default, skip_serializing_if = "is_fp32")]
+    pub precision: Precision,
     /// Where the detector comes from.
     pub source: VariantSource,
+}
+
+fn is_fp32(p: &Precision) -> bool {
+    *p == Precision::Fp32
 }
 
 /// What a detector is told about the frame besides its pixels.
@@ -328,6 +347,10 @@ pub struct VariantEntry {
     /// detector itself (one thread, the fastest of its runs over sample frames).
     #[serde(default)]
     pub latency_ms: Option<f64>,
+    /// Its arithmetic, `"fp32"` (the default) or `"int8"`: which of the device
+    /// profile's speeds its latency scales by.
+    #[serde(default)]
+    pub precision: Precision,
     /// Where the detector comes from.
     pub source: VariantSource,
 }
@@ -355,6 +378,9 @@ pub struct VariantsFile {
     /// machine that timed them (`frugal pareto` writes it); a replay log keeps it.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reference_ms: Option<f64>,
+    /// The same for the int8 reference detector; a replay log keeps it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_int8_ms: Option<f64>,
 }
 
 impl VariantsFile {
@@ -441,6 +467,7 @@ impl VariantsFile {
                 family,
                 latency_ms: latency,
                 relative_cost: 1.0,
+                precision: v.precision,
                 source: v.source.clone(),
             });
         }
@@ -494,6 +521,7 @@ impl VariantSet {
                 family: 0,
                 latency_ms: entry.latency_ms.unwrap_or(f64::NAN),
                 relative_cost: 1.0,
+                precision: entry.precision,
                 source: entry.source.clone(),
             };
             detectors.push(match &info.source {
@@ -566,6 +594,7 @@ mod tests {
             name: name.into(),
             family: "cnn".into(),
             latency_ms,
+            precision: Precision::Fp32,
             source: VariantSource::Synthetic(SyntheticSpec::default()),
         }
     }
@@ -576,6 +605,7 @@ mod tests {
             families: Vec::new(),
             variants: vec![entry("a", Some(5.0)), entry("b", None), entry("c", None)],
             reference_ms: None,
+            reference_int8_ms: None,
         };
         let mut asked = Vec::new();
         let set = VariantSet::from_file(

@@ -222,12 +222,19 @@ fn compress_then_pareto_on_a_tiny_model() {
                 .is_file()
         );
         assert!(v["latency_ms"].as_f64().unwrap() > 0.0);
+        // each says its arithmetic, which the device profile's speeds scale by
+        let int8 = rec(v["name"].as_str().unwrap())["int8"].as_bool().unwrap();
+        assert_eq!(v["precision"], if int8 { "int8" } else { "fp32" });
     }
+    // both reference detectors' costs, as the report has them
+    assert_eq!(vf["reference_ms"], report["reference"]["min_ms"]);
+    assert_eq!(vf["reference_int8_ms"], report["reference_int8"]["min_ms"]);
     assert_eq!(report["timed_frames"], 4);
     // every timed run is kept, frame by frame, and summarised as reported
     let t = json(&out.join("timings.json"));
     assert_eq!(t["frames"], serde_json::json!([0, 1, 2, 3]));
     assert_eq!(t["reference_ms"].as_array().unwrap().len(), 4);
+    assert_eq!(t["reference_int8_ms"].as_array().unwrap().len(), 4);
     let fastest = |runs: &serde_json::Value| {
         runs.as_array()
             .unwrap()
@@ -236,6 +243,10 @@ fn compress_then_pareto_on_a_tiny_model() {
             .fold(f64::INFINITY, f64::min)
     };
     assert_eq!(fastest(&t["reference_ms"]), report["reference"]["min_ms"]);
+    assert_eq!(
+        fastest(&t["reference_int8_ms"]),
+        report["reference_int8"]["min_ms"]
+    );
     for v in vs {
         let runs = &t["variants"][v["name"].as_str().unwrap()];
         assert_eq!(runs.as_array().unwrap().len(), 4, "{}", v["name"]);

@@ -47,7 +47,9 @@ fn score_log(
             pol.variants.join(", ")
         );
     }
-    let log = &with_policy_buckets(log, policy);
+    let mut log = with_policy_buckets(log, policy);
+    pol.config.put_on_device(&mut log);
+    let log = &log;
     let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
     if videos.is_empty() {
         anyhow::bail!("{}: the log has no test videos", data.display());
@@ -166,14 +168,38 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
         ),
     }
     cfg.slowdown = slowdown;
+    cfg.slowdown_int8 = cfg.device_slowdown_int8(log.reference_int8_ms);
+    match (
+        cfg.slowdown_int8,
+        cfg.device_reference_int8_ms,
+        log.reference_int8_ms,
+    ) {
+        (Some(s8), Some(d), Some(h)) => println!(
+            "device {}: the int8 reference detector takes {d:.1} ms there and took {h:.2} ms on the machine that timed the variants: int8 variants' slowdown {s8:.3}",
+            cfg.device
+        ),
+        _ => println!(
+            "device {}: int8 variants scale as fp32 ones ({})",
+            cfg.device,
+            if cfg.device_reference_int8_ms.is_none() {
+                "the profile states no int8 speed".to_string()
+            } else {
+                format!("{} records no int8 reference timing", log_path.display())
+            }
+        ),
+    }
+    // the log with every variant's latency on the device's anchor (the one scored
+    // below is put there by `score_log`)
+    let mut on_device = log.clone();
+    cfg.put_on_device(&mut on_device);
     let ds = Dataset::load(&root)?;
     let frames = DatasetFrames::new(&ds);
-    let train: Vec<&VideoLog> = log.split(Split::Train).collect();
+    let train: Vec<&VideoLog> = on_device.split(Split::Train).collect();
     if train.is_empty() {
         anyhow::bail!("{}: the log has no training videos", log_path.display());
     }
-    let cost = tracker_cost(&log, &policy, &train, &frames, eval)?;
-    let pol = train_budget(&log, &frames, cost, &cfg, 0.5)?;
+    let cost = tracker_cost(&on_device, &policy, &train, &frames, eval)?;
+    let pol = train_budget(&on_device, &frames, cost, &cfg, 0.5)?;
     for p in &pol.policies {
         println!(
             "budget {} ms ({} ×{:.3}): λ {:.3}, expected {:.2} ms/frame (P95 over videos {:.2}), training F1/frame {:.3}",
@@ -185,7 +211,8 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
     let tune_logs: Vec<(ReplayLog, Dataset)> = tune
         .iter()
         .map(|p| {
-            let l = with_policy_buckets(&ReplayLog::load(p)?, &policy);
+            let mut l = with_policy_buckets(&ReplayLog::load(p)?, &policy);
+            cfg.put_on_device(&mut l);
             let ds = Dataset::load(&l.dataset)
                 .with_context(|| format!("{}: its dataset", p.display()))?;
             Ok((l, ds))
@@ -196,7 +223,7 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
         .map(|(_, ds)| DatasetFrames::new(ds))
         .collect();
     let mut sets = vec![TuneSet {
-        log: &log,
+        log: &on_device,
         frames: &frames,
         videos: train.clone(),
     }];

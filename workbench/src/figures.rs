@@ -77,6 +77,10 @@ pub fn collect(run: &Path) -> Figures {
             "device.reference_ms".into(),
             cost_ms(&p["reference"]).map(|ms| format!("{ms:.2}")),
         );
+        put(
+            "device.reference_int8_ms".into(),
+            cost_ms(&p["reference_int8"]).map(|ms| format!("{ms:.2}")),
+        );
         if let Some(front) = p["fronts"]["map"].as_array() {
             let names: Vec<&str> = front.iter().filter_map(Value::as_str).collect();
             put("front.map".into(), Some(names.join(" → ")));
@@ -121,6 +125,11 @@ pub fn collect(run: &Path) -> Figures {
         put(
             "device.device_reference_ms".into(),
             f(&c["device_reference_ms"], 1),
+        );
+        put("device.slowdown_int8".into(), f(&c["slowdown_int8"], 2));
+        put(
+            "device.device_reference_int8_ms".into(),
+            f(&c["device_reference_int8_ms"], 1),
         );
     }
     for (set, dir) in [("test", "budget"), ("heldout", "budget/heldout-1")] {

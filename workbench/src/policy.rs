@@ -339,6 +339,7 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
                 !a.quiet,
             )?;
             log.reference_ms = file.reference_ms;
+            log.reference_int8_ms = file.reference_int8_ms;
             log.save(&a.out)?;
             let n: usize = log.videos.iter().map(|v| v.frames.len()).sum();
             println!(

@@ -423,13 +423,42 @@ const REFERENCE_SEED: i64 = 2026;
 /// measured on the host (`frugal pareto`'s `reference_ms`).
 pub fn export_reference(dir: &Path) -> Result<ExportedFiles, ModelError> {
     let (h, w) = REFERENCE_SIZE;
+    export_detector_quantized(&reference_model()?, h, w, None, dir)
+}
+
+/// Seeded images the int8 reference is calibrated on ([`export_reference_int8`]).
+const REFERENCE_CALIBRATION_IMAGES: usize = 4;
+
+/// Exports the *int8 reference detector* into `dir`: the reference detector
+/// ([`export_reference`]) quantized as the int8 variants are (QDQ, the layers of
+/// [`crate::compress::quant::default_quantized_layers`], min-max ranges), calibrated on
+/// seeded normal-noise images. Machines differ in how much faster they run int8 than
+/// fp32 (integer dot-product instructions or not), so a device profile states the
+/// speed of both; int8 variants scale from this one's latency, fp32 ones from the fp32
+/// reference's (`frugal pareto`'s `reference_int8_ms`).
+pub fn export_reference_int8(dir: &Path) -> Result<ExportedFiles, ModelError> {
+    use crate::compress::quant;
+    let (h, w) = REFERENCE_SIZE;
+    let model = reference_model()?;
+    let images: Vec<Tensor> = (0..REFERENCE_CALIBRATION_IMAGES)
+        .map(|_| Tensor::randn([1, 3, h as i64, w as i64], (Kind::Float, tch::Device::Cpu)))
+        .collect();
+    let stats = quant::collect_stats(&model, &images)?;
+    let layers = quant::default_quantized_layers(&model);
+    let spec = quant::quant_spec(&stats, quant::Calibration::MinMax, &layers);
+    export_detector_quantized(&model, h, w, Some(&spec), dir)
+}
+
+/// The reference detector's model, its weights drawn from [`REFERENCE_SEED`] (which
+/// also seeds what is drawn after it).
+fn reference_model() -> Result<FasterRcnn, ModelError> {
+    let (h, w) = REFERENCE_SIZE;
     tch::manual_seed(REFERENCE_SEED);
     let cfg = crate::config::ModelConfig {
         input_size: Some([w, h]),
         ..crate::config::ModelConfig::default()
     };
-    let model = FasterRcnn::new(cfg, tch::Device::Cpu)?;
-    export_detector_quantized(&model, h, w, None, dir)
+    FasterRcnn::new(cfg, tch::Device::Cpu)
 }
 
 #[cfg(test)]

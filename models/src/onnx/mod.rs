@@ -16,7 +16,7 @@ pub use executor::{GlueSpec, OrtDetector, OrtError, StageTimes};
 pub use export::{
     BACKBONE_RPN_FILE, DetectorGraphs, ExportedFiles, REFERENCE_SIZE, ROI_HEAD_FILE,
     detector_graphs, detector_graphs_quantized, export_detector, export_detector_quantized,
-    export_reference,
+    export_reference, export_reference_int8,
 };
 pub use parity::{ParityReport, parity};
 pub use qdq::{ActQuant, QuantSpec};

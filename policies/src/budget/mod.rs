@@ -69,9 +69,20 @@ pub struct BudgetConfig {
     /// ratio ([`BudgetConfig::device_slowdown`]), so the device is the same whatever
     /// machine measured the variants. `None`: [`BudgetConfig::slowdown`] as given.
     pub device_reference_ms: Option<f64>,
+    /// The device's int8 speed: the int8 reference detector's latency on it, ms
+    /// (`frugal_models::onnx::export_reference_int8`; tx2-like:
+    /// [`TX2_LIKE_REFERENCE_INT8_MS`]). Machines differ in how much faster they run int8
+    /// than fp32, so with one anchor the device would inherit the measuring machine's
+    /// int8 gain; with this one, int8 variants scale by
+    /// [`BudgetConfig::device_slowdown_int8`]. `None`: they scale as fp32 ones do.
+    pub device_reference_int8_ms: Option<f64>,
     /// Device time over measured time: the fallback when no reference is known; once
     /// the budget stage has scaled a log, the slowdown it used.
     pub slowdown: f64,
+    /// Once the budget stage has scaled a log, the slowdown it used for int8 variants
+    /// (`None`: [`BudgetConfig::slowdown`], as for fp32 ones).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub slowdown_int8: Option<f64>,
     /// Detect-every-`N` choices, strictly ascending from 1 (the static baseline detects
     /// every frame when its variant fits the budget), each at most 255 (at most 4).
     pub periods: Vec<u32>,
@@ -207,7 +218,9 @@ impl Default for BudgetConfig {
             budgets_ms: vec![33.0, 16.0, 8.0],
             device: "tx2-like".into(),
             device_reference_ms: Some(TX2_LIKE_REFERENCE_MS),
+            device_reference_int8_ms: Some(TX2_LIKE_REFERENCE_INT8_MS),
             slowdown: 6.0,
+            slowdown_int8: None,
             periods: vec![1, 2, 4, 8],
             switch_cost: 0.02,
             gamma: 0.8,
@@ -242,6 +255,14 @@ impl Default for BudgetConfig {
 /// fixed at 6.
 pub const TX2_LIKE_REFERENCE_MS: f64 = 194.4;
 
+/// The tx2-like device profile's int8 speed: the int8 reference detector takes this
+/// long on it, ms. The published run's machine (the x86 server core with AVX-512 VNNI
+/// and AMX behind [`TX2_LIKE_REFERENCE_MS`]) ran this architecture in int8 (min-max
+/// calibration) at 0.7206 of its fp32 time (17.835 ms against 24.75, the fastest
+/// runs); the device keeps that ratio, so that machine's device latencies are what
+/// they were with one anchor: 194.4 × 0.7206.
+pub const TX2_LIKE_REFERENCE_INT8_MS: f64 = 140.1;
+
 impl BudgetConfig {
     /// The slowdown of the device over the machine that measured a log whose reference
     /// detector took `host_reference_ms` there: `device_reference_ms /
@@ -250,6 +271,32 @@ impl BudgetConfig {
         match (self.device_reference_ms, host_reference_ms) {
             (Some(d), Some(h)) if h > 0.0 && h.is_finite() => d / h,
             _ => self.slowdown,
+        }
+    }
+
+    /// The slowdown of the device over the measuring machine for int8 variants, when
+    /// the profile states an int8 speed and the machine timed the int8 reference
+    /// detector (`host_reference_int8_ms`): their ratio.
+    pub fn device_slowdown_int8(&self, host_reference_int8_ms: Option<f64>) -> Option<f64> {
+        match (self.device_reference_int8_ms, host_reference_int8_ms) {
+            (Some(d), Some(h)) if h > 0.0 && h.is_finite() => Some(d / h),
+            _ => None,
+        }
+    }
+
+    /// Puts `log` on the device, once after loading it: every computation on the
+    /// device clock charges a variant `latency_ms × slowdown`, so an int8 variant's
+    /// measured latency is rescaled by `slowdown_int8 / slowdown`, making that product
+    /// its device latency under the int8 anchor. Without [`BudgetConfig::slowdown_int8`]
+    /// the log is left as it is.
+    pub fn put_on_device(&self, log: &mut crate::ReplayLog) {
+        if let Some(s8) = self.slowdown_int8 {
+            let k = s8 / self.slowdown;
+            for v in &mut log.variants {
+                if v.precision == crate::variants::Precision::Int8 {
+                    v.latency_ms *= k;
+                }
+            }
         }
     }
 
@@ -286,6 +333,21 @@ impl BudgetConfig {
             .is_some_and(|r| !(r.is_finite() && r > 0.0))
         {
             return bad("device_reference_ms", "must be finite and > 0 when given");
+        }
+        if self
+            .device_reference_int8_ms
+            .is_some_and(|r| !(r.is_finite() && r > 0.0))
+        {
+            return bad(
+                "device_reference_int8_ms",
+                "must be finite and > 0 when given",
+            );
+        }
+        if self
+            .slowdown_int8
+            .is_some_and(|s| !(s.is_finite() && s > 0.0))
+        {
+            return bad("slowdown_int8", "must be finite and > 0 when given");
         }
         if self.periods.first() != Some(&1)
             || self.periods.len() > frugal_runtime::schedule::MAX_PERIODS

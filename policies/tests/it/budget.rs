@@ -1234,3 +1234,64 @@ fn the_bundle_records_the_frame_interval_the_tables_count() {
     };
     assert!((old.schedule_spec().frame_ms - 1e3 / 30.0).abs() < 1e-4);
 }
+
+/// A device profile states its int8 speed as well as its fp32 one, so two machines that
+/// differ only in how much faster they run int8 (integer dot-product instructions or
+/// not) simulate the same device: the same device latencies, the same tables. With the
+/// fp32 anchor alone, the machine that runs int8 faster sees cheaper int8 variants.
+#[test]
+fn machines_that_differ_in_int8_speed_simulate_the_same_device() {
+    use frugal_policies::variants::Precision;
+    let (log, frames) = log3();
+    // the fixture's variants (2, 5, 10 ms), the last two int8, on a machine that runs
+    // int8 `int8_speed` times faster than the first; the references timed with them
+    let on = |int8_speed: f64, int8_anchor: bool| {
+        let mut log = log.clone();
+        log.reference_ms = Some(10.0);
+        log.reference_int8_ms = Some(8.0 / int8_speed);
+        for v in &mut log.variants[1..] {
+            v.precision = Precision::Int8;
+            v.latency_ms /= int8_speed;
+        }
+        let mut cfg = BudgetConfig {
+            device_reference_ms: Some(30.0),
+            device_reference_int8_ms: int8_anchor.then_some(24.0),
+            ..config()
+        };
+        cfg.check(std::path::Path::new("budget.toml")).unwrap();
+        cfg.slowdown = cfg.device_slowdown(log.reference_ms);
+        cfg.slowdown_int8 = cfg.device_slowdown_int8(log.reference_int8_ms);
+        cfg.put_on_device(&mut log);
+        train_budget(&log, &frames, COST, &cfg, 0.5).unwrap()
+    };
+    let (a, b) = (on(1.0, true), on(1.6, true));
+    assert_eq!(a.config.slowdown, 3.0);
+    assert_eq!(b.config.slowdown_int8, Some(24.0 / 5.0));
+    // fp32 by its anchor (2 ms × 30 / 10), int8 by theirs (5 ms × 24 / 8)
+    for (got, want) in [(&a, [6.0, 15.0, 30.0]), (&b, [6.0, 15.0, 30.0])] {
+        for (g, w) in got.variant_device_ms.iter().zip(want) {
+            assert!((g - w).abs() < 1e-9, "{:?}", got.variant_device_ms);
+        }
+    }
+    for (pa, pb) in a.policies.iter().zip(&b.policies) {
+        assert_eq!(pa.actions, pb.actions, "budget {} ms", pa.budget_ms);
+    }
+    // one anchor: the faster int8 machine's device runs its int8 variants 1.6× faster
+    let one = on(1.6, false);
+    assert_eq!(one.config.slowdown_int8, None);
+    let ms = &one.variant_device_ms;
+    assert!(
+        (ms[1] - 15.0 / 1.6).abs() < 1e-9 && (ms[2] - 30.0 / 1.6).abs() < 1e-9,
+        "{ms:?}"
+    );
+    // an int8 speed must be a positive time
+    let bad = BudgetConfig {
+        device_reference_int8_ms: Some(-1.0),
+        ..BudgetConfig::default()
+    };
+    let e = bad
+        .check(std::path::Path::new("budget.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("device_reference_int8_ms"), "{e}");
+}

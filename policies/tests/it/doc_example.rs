@@ -57,6 +57,7 @@ fn crate_docs_example() -> Result<(), frugal_policies::PolicyError> {
         family: 0,
         latency_ms: ms,
         relative_cost: 1.0,
+        precision: Default::default(),
         source: VariantSource::Synthetic(s.clone()),
     };
     let (cheap, costly) = (spec(1, [0.6, 0.8]), spec(2, [0.95, 1.0]));

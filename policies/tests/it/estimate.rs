@@ -35,6 +35,7 @@ fn hand_log() -> ReplayLog {
         family: 0,
         latency_ms: latency,
         relative_cost: latency,
+        precision: Default::default(),
         source: VariantSource::Synthetic(SyntheticSpec::default()),
     };
     ReplayLog {
@@ -49,6 +50,7 @@ fn hand_log() -> ReplayLog {
         variants: vec![variant("a", 1.0), variant("b", 4.0)],
         max_detections: 8,
         reference_ms: None,
+        reference_int8_ms: None,
         videos: vec![VideoLog {
             id: 0,
             clutter: Clutter::Low,

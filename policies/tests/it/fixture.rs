@@ -141,6 +141,7 @@ pub fn set(specs: &[(&str, f64, SyntheticSpec)]) -> VariantSet {
             family: 0,
             latency_ms: *l,
             relative_cost: 1.0,
+            precision: Default::default(),
             source: VariantSource::Synthetic(s.clone()),
         })
         .collect();
