@@ -169,6 +169,15 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
     }
     cfg.slowdown = slowdown;
     cfg.slowdown_int8 = cfg.device_slowdown_int8(log.reference_int8_ms);
+    if cfg.device_reference_ms != Some(frugal_policies::budget::TX2_LIKE_REFERENCE_MS)
+        && cfg.device_reference_int8_ms == Some(frugal_policies::budget::TX2_LIKE_REFERENCE_INT8_MS)
+    {
+        eprintln!(
+            "warning: {}: device_reference_ms is not the tx2-like profile's but device_reference_int8_ms is ({} ms); state the device's int8 speed too",
+            config.unwrap_or(Path::new("<defaults>")).display(),
+            frugal_policies::budget::TX2_LIKE_REFERENCE_INT8_MS
+        );
+    }
     match (
         cfg.slowdown_int8,
         cfg.device_reference_int8_ms,
