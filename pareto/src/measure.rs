@@ -396,9 +396,10 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
     let mut reference_ms = Vec::with_capacity(timed.len());
     let mut reference_int8_ms = Vec::with_capacity(timed.len());
     for f in found.iter_mut().flatten() {
-        if let (Some((_, Some(i8))), Some((_, Some(f32)))) = (f.pop(), f.pop()) {
-            reference_int8_ms.push(i8);
-            reference_ms.push(f32);
+        // the last two timed, in rotation order: the fp32 reference, then the int8 one
+        if let (Some((_, Some(int8))), Some((_, Some(fp32)))) = (f.pop(), f.pop()) {
+            reference_int8_ms.push(int8);
+            reference_ms.push(fp32);
         }
     }
     let reference = Latency::from_samples(&reference_ms)

@@ -187,14 +187,14 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
             "device {}: the int8 reference detector takes {d:.1} ms there and took {h:.2} ms on the machine that timed the variants: int8 variants' slowdown {s8:.3}",
             cfg.device
         ),
+        (_, None, _) => println!(
+            "device {}: int8 variants scale as fp32 ones (the profile states no int8 speed)",
+            cfg.device
+        ),
         _ => println!(
-            "device {}: int8 variants scale as fp32 ones ({})",
+            "device {}: int8 variants scale as fp32 ones ({} records no int8 reference timing)",
             cfg.device,
-            if cfg.device_reference_int8_ms.is_none() {
-                "the profile states no int8 speed".to_string()
-            } else {
-                format!("{} records no int8 reference timing", log_path.display())
-            }
+            log_path.display()
         ),
     }
     // the log with every variant's latency on the device's anchor (the one scored

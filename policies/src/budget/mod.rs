@@ -263,25 +263,28 @@ pub const TX2_LIKE_REFERENCE_MS: f64 = 194.4;
 /// they were with one anchor: 194.4 × 0.7206.
 pub const TX2_LIKE_REFERENCE_INT8_MS: f64 = 140.1;
 
+/// A reference detector's time on the device over its time on the measuring machine,
+/// when both are known (and the latter is a positive time).
+fn anchor_ratio(device_ms: Option<f64>, host_ms: Option<f64>) -> Option<f64> {
+    match (device_ms, host_ms) {
+        (Some(d), Some(h)) if h > 0.0 && h.is_finite() => Some(d / h),
+        _ => None,
+    }
+}
+
 impl BudgetConfig {
     /// The slowdown of the device over the machine that measured a log whose reference
     /// detector took `host_reference_ms` there: `device_reference_ms /
     /// host_reference_ms` when both are known, else [`BudgetConfig::slowdown`].
     pub fn device_slowdown(&self, host_reference_ms: Option<f64>) -> f64 {
-        match (self.device_reference_ms, host_reference_ms) {
-            (Some(d), Some(h)) if h > 0.0 && h.is_finite() => d / h,
-            _ => self.slowdown,
-        }
+        anchor_ratio(self.device_reference_ms, host_reference_ms).unwrap_or(self.slowdown)
     }
 
     /// The slowdown of the device over the measuring machine for int8 variants, when
     /// the profile states an int8 speed and the machine timed the int8 reference
     /// detector (`host_reference_int8_ms`): their ratio.
     pub fn device_slowdown_int8(&self, host_reference_int8_ms: Option<f64>) -> Option<f64> {
-        match (self.device_reference_int8_ms, host_reference_int8_ms) {
-            (Some(d), Some(h)) if h > 0.0 && h.is_finite() => Some(d / h),
-            _ => None,
-        }
+        anchor_ratio(self.device_reference_int8_ms, host_reference_int8_ms)
     }
 
     /// Puts `log` on the device, once after loading it: every computation on the
@@ -328,26 +331,14 @@ impl BudgetConfig {
         if !(self.slowdown.is_finite() && self.slowdown > 0.0) {
             return bad("slowdown", "must be finite and > 0");
         }
-        if self
-            .device_reference_ms
-            .is_some_and(|r| !(r.is_finite() && r > 0.0))
-        {
-            return bad("device_reference_ms", "must be finite and > 0 when given");
-        }
-        if self
-            .device_reference_int8_ms
-            .is_some_and(|r| !(r.is_finite() && r > 0.0))
-        {
-            return bad(
-                "device_reference_int8_ms",
-                "must be finite and > 0 when given",
-            );
-        }
-        if self
-            .slowdown_int8
-            .is_some_and(|s| !(s.is_finite() && s > 0.0))
-        {
-            return bad("slowdown_int8", "must be finite and > 0 when given");
+        for (field, value) in [
+            ("device_reference_ms", self.device_reference_ms),
+            ("device_reference_int8_ms", self.device_reference_int8_ms),
+            ("slowdown_int8", self.slowdown_int8),
+        ] {
+            if value.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
+                return bad(field, "must be finite and > 0 when given");
+            }
         }
         if self.periods.first() != Some(&1)
             || self.periods.len() > frugal_runtime::schedule::MAX_PERIODS
