@@ -36,6 +36,11 @@ pub struct Percept {
     /// so the distance read from it) is the tracker's prediction, which drifts and
     /// keeps a misdrawn box's error. The navigator places signs by measured boxes only.
     pub tracked: bool,
+    /// Of `compute_ms`, the time spent in int8 detectors (0 when none ran, or when the
+    /// bundle does not mark its int8 variants). A device profile that runs int8 at
+    /// another speed relative to the measuring machine than fp32 charges this part by
+    /// its int8 slowdown.
+    pub int8_ms: f64,
 }
 
 /// An error from a perception implementation (boxed so any detector's error fits).
@@ -84,6 +89,35 @@ pub enum BundleError {
 /// Bundle metadata keys naming a further file and its SHA-256 (`file:<path>`), as
 /// `frugal bundle write` records the second graph of each ONNX variant.
 pub const FILE_KEY: &str = "file:";
+
+/// Bundle metadata key prefix of a variant's numeric precision
+/// (`precision:<variant>` = `int8`), as `frugal bundle write` marks the int8 variants;
+/// a variant without one is fp32.
+pub const PRECISION_KEY: &str = "precision:";
+
+/// The value of [`PRECISION_KEY`] for an int8 variant.
+pub const INT8: &str = "int8";
+
+/// Device ms for `compute_ms` measured on a machine that stands in for the device,
+/// `int8_ms` of it in int8 detectors: the int8 part × `slowdown_int8`, the rest ×
+/// `slowdown` (negative times count as 0, and the int8 part at most the whole).
+pub fn device_ms(compute_ms: f64, int8_ms: f64, slowdown: f64, slowdown_int8: f64) -> f64 {
+    let compute_ms = compute_ms.max(0.0);
+    let int8_ms = int8_ms.clamp(0.0, compute_ms);
+    (compute_ms - int8_ms) * slowdown + int8_ms * slowdown_int8
+}
+
+/// Per variant of `bundle`, in bundle order: whether its metadata marks it int8.
+pub fn int8_variants(bundle: &Bundle<'_>) -> Vec<bool> {
+    bundle
+        .variants()
+        .map(|(_, v)| {
+            bundle
+                .metadata()
+                .any(|(k, val)| k.strip_prefix(PRECISION_KEY) == Some(v.name) && val == INT8)
+        })
+        .collect()
+}
 
 /// Lower-case hex of `bytes`.
 pub fn hex(bytes: &[u8]) -> String {
@@ -172,6 +206,11 @@ pub struct BundlePerception {
     /// Device ms per measured ms, what the budget keeper is debited
     /// ([`BundlePerception::with_debit_scale`]; 1 on the drone).
     debit_scale: f32,
+    /// The same for the time spent in int8 variants, when it differs
+    /// ([`BundlePerception::with_int8_debit_scale`]).
+    int8_debit_scale: Option<f32>,
+    /// Per variant, whether the bundle marks it int8 ([`int8_variants`]).
+    int8: Vec<bool>,
     /// Flying a budget table of a bundle that records the tables' frame interval: the
     /// clock that numbers the frames ([`BundlePerception::frame_number`]).
     table_clock: Option<FrameClock>,
@@ -221,6 +260,8 @@ impl BundlePerception {
             last_run: Vec::new(),
             budget_ms: None,
             debit_scale: 1.0,
+            int8_debit_scale: None,
+            int8: int8_variants(&bundle),
             table_clock: None,
         })
     }
@@ -328,6 +369,42 @@ impl BundlePerception {
         Ok(self)
     }
 
+    /// Debit the time spent in the variants the bundle marks int8 ([`int8_variants`])
+    /// `scale` device ms per measured ms instead of [`BundlePerception::with_debit_scale`]'s,
+    /// for a simulated device whose int8 speed relative to the measuring machine is not
+    /// its fp32 one. Fails unless `scale` is positive and finite.
+    pub fn with_int8_debit_scale(mut self, scale: f32) -> Result<Self, PerceptionError> {
+        if !(scale > 0.0 && scale.is_finite()) {
+            return Err(
+                format!("the keeper's int8 debit scale must be positive, got {scale}").into(),
+            );
+        }
+        self.int8_debit_scale = Some(scale);
+        Ok(self)
+    }
+
+    /// The device ms the keeper is debited for `compute_ms` measured, `int8_ms` of it
+    /// in int8 variants.
+    fn debit(&self, compute_ms: f64, int8_ms: f64) -> f32 {
+        let scale8 = self.int8_debit_scale.unwrap_or(self.debit_scale);
+        device_ms(
+            compute_ms,
+            int8_ms,
+            f64::from(self.debit_scale),
+            f64::from(scale8),
+        ) as f32
+    }
+
+    /// The time, ms, the int8 variants ran since `us_before` (each variant's µs then).
+    fn int8_ms_since(&self, us_before: &[u64]) -> f64 {
+        let us: u64 = (self.runs_per_variant.iter().zip(us_before))
+            .zip(&self.int8)
+            .filter(|(_, int8)| **int8)
+            .map(|((r, before), _)| r.us.saturating_sub(*before))
+            .sum();
+        us as f64 / 1e3
+    }
+
     /// Periodic detections the budget keeper has postponed so far (0 without one).
     pub fn postponed(&self) -> u32 {
         self.pilot
@@ -401,6 +478,7 @@ impl BundlePerception {
             None
         };
         let runs_before: Vec<u64> = self.runs_per_variant.iter().map(|r| r.runs).collect();
+        let us_before: Vec<u64> = self.runs_per_variant.iter().map(|r| r.us).collect();
         let decision = self.pilot.decide(index as u32, prev.as_ref(), &cur);
         let detections = match decision {
             Decision::Detect { variant, reason } => {
@@ -433,9 +511,9 @@ impl BundlePerception {
             .map(|(i, _)| i)
             .collect();
         let elapsed = started.elapsed();
+        let (compute_ms, int8_ms) = (elapsed.as_secs_f64() * 1e3, self.int8_ms_since(&us_before));
         // the budget keeper's debit (a pilot over the controller ignores it)
-        self.pilot
-            .spent((elapsed.as_secs_f64() * 1e3) as f32 * self.debit_scale);
+        self.pilot.spent(self.debit(compute_ms, int8_ms));
         let us = u64::try_from(elapsed.as_micros()).unwrap_or(u64::MAX);
         if decision == Decision::Track {
             self.tracked_frames += 1;
@@ -445,8 +523,9 @@ impl BundlePerception {
         }
         Ok(Percept {
             detections,
-            compute_ms: elapsed.as_secs_f64() * 1e3,
+            compute_ms,
             tracked: decision == Decision::Track,
+            int8_ms,
         })
     }
 
@@ -457,6 +536,7 @@ impl BundlePerception {
         let started = Instant::now();
         self.confirmations += 1;
         let reference = self.bundle.policy().reference();
+        let us_before: Vec<u64> = self.runs_per_variant.iter().map(|r| r.us).collect();
         let t_c = self
             .bundle
             .variant_buckets(reference)
@@ -469,11 +549,13 @@ impl BundlePerception {
         )?;
         detections.retain(|d| d.score >= t_c);
         let compute_ms = started.elapsed().as_secs_f64() * 1e3;
-        self.pilot.spent(compute_ms as f32 * self.debit_scale);
+        let int8_ms = self.int8_ms_since(&us_before);
+        self.pilot.spent(self.debit(compute_ms, int8_ms));
         Ok(Percept {
             detections,
             compute_ms,
             tracked: false,
+            int8_ms,
         })
     }
 

@@ -147,6 +147,7 @@ impl Replay {
             detections: f.map(|f| f.detections.clone()).unwrap_or_default(),
             compute_ms: 0.0,
             tracked: f.is_some_and(|f| f.tracked),
+            int8_ms: 0.0,
         }
     }
 

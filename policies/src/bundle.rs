@@ -18,7 +18,7 @@
 
 use crate::error::{PolicyError, Result};
 use crate::train::TrainedPolicy;
-use crate::variants::{FamilyInfo, VariantInfo, VariantSource};
+use crate::variants::{FamilyInfo, Precision, VariantInfo, VariantSource};
 use frugal_runtime::Bundle;
 use frugal_runtime::bundle::write::{BundleWriter, FamilySpec, ScheduleSpec, VariantSpec};
 use frugal_runtime::bundle::{Bucket, Thresholds};
@@ -28,7 +28,7 @@ use std::path::{Path, PathBuf};
 
 /// The bundle's file name inside a bundle folder, and the metadata key prefix of extra
 /// files: the drone side's, which reads and checks what this module writes.
-pub use frugal_nav::bundle::{BUNDLE_FILE, FILE_KEY};
+pub use frugal_nav::bundle::{BUNDLE_FILE, FILE_KEY, INT8, PRECISION_KEY};
 /// The graph that takes the variant's file slot when present.
 pub const PRIMARY_GRAPH: &str = "backbone_rpn.onnx";
 
@@ -115,10 +115,17 @@ pub fn bundle_bytes(
     })
 }
 
-/// The metadata a trained policy puts into its bundle.
+/// The metadata a trained policy puts into its bundle: how it was made, and each int8
+/// variant's precision (`precision:<variant>` = `int8`, read by a simulated device
+/// that charges int8 by its own speed).
 pub fn policy_metadata(policy: &TrainedPolicy) -> Vec<(String, String)> {
     let c = &policy.config;
-    vec![
+    let int8 = policy
+        .variants
+        .iter()
+        .filter(|v| v.precision == Precision::Int8)
+        .map(|v| (format!("{PRECISION_KEY}{}", v.name), INT8.to_owned()));
+    let mut meta = vec![
         (
             "created-by".into(),
             format!("frugal {}", env!("CARGO_PKG_VERSION")),
@@ -141,7 +148,9 @@ pub fn policy_metadata(policy: &TrainedPolicy) -> Vec<(String, String)> {
                 .collect::<Vec<_>>()
                 .join(","),
         ),
-    ]
+    ];
+    meta.extend(int8);
+    meta
 }
 
 /// A trained policy's bundle bytes without files (what the replay evaluates).

@@ -3,7 +3,9 @@
 //! policy bundle's perception from `frugal-nav` ([`BundlePerception`]: controller + KLT
 //! trackers deciding per frame, the chosen variant run through ONNX Runtime) — the same
 //! code the drone-side program (`frugal-pilot`) runs.
-use crate::perception::{DetectorPerception, FrameInput, Percept, Perception, PerceptionError};
+use crate::perception::{
+    DetectorPerception, DeviceProfile, FrameInput, Percept, Perception, PerceptionError,
+};
 use frugal_nav::BundlePerception;
 use frugal_runtime::onnx::OrtDetector;
 use frugal_runtime::pilot::Carry;
@@ -55,8 +57,10 @@ impl AdaptivePerception {
 
     /// Fly the bundle's budget table for `budget_ms` device ms per frame
     /// ([`BundlePerception::with_budget`]), with a budget keeper of `keep_window` frames
-    /// (0: none) debited every frame's compute × `slowdown` (the device profile's, as
-    /// the flight charges it). The table's periods and the keeper's credit count frames
+    /// (0: none) debited every frame's compute on `device` as the flight charges it
+    /// ([`DeviceProfile::device_ms`]: the int8 variants' time by the profile's int8
+    /// slowdown when it states one, which the bundle's `precision:` metadata names).
+    /// The table's periods and the keeper's credit count frames
     /// on the clock the tables were made on (the bundle's frame interval), by their
     /// capture times, those the camera took while perception was busy included, as on
     /// the drone; a camera faster than that clock has its extra frames dropped
@@ -67,17 +71,21 @@ impl AdaptivePerception {
         self,
         budget_ms: f32,
         keep_window: u32,
-        slowdown: f64,
+        device: &DeviceProfile,
         camera_fps: f64,
     ) -> Result<Self, PerceptionError> {
         if !(camera_fps > 0.0 && camera_fps.is_finite()) {
             return Err(format!("camera frame rate must be positive, got {camera_fps}").into());
         }
-        let inner = self
+        device.check()?;
+        let mut inner = self
             .inner
             .with_budget(budget_ms, keep_window)?
-            .with_debit_scale(slowdown as f32)?
+            .with_debit_scale(device.slowdown as f32)?
             .with_fallback_clock(1e3 / camera_fps)?;
+        if let Some(s8) = device.slowdown_int8 {
+            inner = inner.with_int8_debit_scale(s8 as f32)?;
+        }
         Ok(Self { inner, dropped: 0 })
     }
 

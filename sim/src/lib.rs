@@ -47,7 +47,7 @@
 //! let mut nothing = |input: &FrameInput<'_>| -> Result<Percept, PerceptionError> {
 //!     let started = std::time::Instant::now();
 //!     let _pixels = input.image.rgb; // run a detector on these
-//!     Ok(Percept { detections: Vec::new(), compute_ms: started.elapsed().as_secs_f64() * 1e3, tracked: false })
+//!     Ok(Percept { detections: Vec::new(), compute_ms: started.elapsed().as_secs_f64() * 1e3, ..Percept::default() })
 //! };
 //! # let _ = &mut nothing;
 //! ```

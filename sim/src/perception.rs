@@ -125,6 +125,7 @@ impl Perception for GroundTruthPerception {
             tracked: false,
             detections,
             compute_ms: self.compute_ms,
+            int8_ms: 0.0,
         })
     }
 }
@@ -142,6 +143,9 @@ pub struct DetectorPerception<D> {
     pub max_detections: usize,
     /// Detections scoring below this are dropped (on the family's score scale).
     pub min_score: f32,
+    /// The detector runs in int8: its time is reported as [`Percept::int8_ms`] too, for
+    /// a device profile with an int8 speed of its own.
+    pub int8: bool,
     out: Vec<Detection>,
 }
 
@@ -153,6 +157,7 @@ impl<D: Detector> DetectorPerception<D> {
             label: label.into(),
             max_detections: 16,
             min_score: f32::NEG_INFINITY,
+            int8: false,
             out: Vec::new(),
         }
     }
@@ -185,18 +190,27 @@ where
             tracked: false,
             detections,
             compute_ms,
+            int8_ms: if self.int8 { compute_ms } else { 0.0 },
         })
     }
 }
 
 /// How much slower the simulated drone's computer is than the machine that measured
-/// the compute time: simulated seconds per frame = `compute_ms / 1000 × slowdown`.
+/// the compute time: simulated seconds per frame = `compute_ms / 1000 × slowdown`, the
+/// part spent in int8 detectors charged by `slowdown_int8` when the profile states one
+/// ([`DeviceProfile::device_ms`]).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct DeviceProfile {
     /// Label, e.g. `tx2-like`.
     pub name: String,
     /// Multiplier on measured compute time (1 = the measuring machine itself).
     pub slowdown: f64,
+    /// Multiplier on the compute time of int8 detectors ([`Percept::int8_ms`]), when the
+    /// device's int8 speed relative to the measuring machine is not its fp32 one (as
+    /// between an x86 host with fast int8 instructions and an ARM board); `None`:
+    /// `slowdown` for everything.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slowdown_int8: Option<f64>,
 }
 
 impl DeviceProfile {
@@ -205,6 +219,7 @@ impl DeviceProfile {
         DeviceProfile {
             name: "host".into(),
             slowdown: 1.0,
+            slowdown_int8: None,
         }
     }
 
@@ -215,6 +230,7 @@ impl DeviceProfile {
         DeviceProfile {
             name: "tx2-like".into(),
             slowdown: 6.0,
+            slowdown_int8: None,
         }
     }
 
@@ -224,6 +240,31 @@ impl DeviceProfile {
             "host" => Some(DeviceProfile::host()),
             "tx2-like" | "tx2" => Some(DeviceProfile::tx2_like()),
             _ => None,
+        }
+    }
+
+    /// Device ms for `compute_ms` measured, `int8_ms` of it in int8 detectors.
+    pub fn device_ms(&self, compute_ms: f64, int8_ms: f64) -> f64 {
+        frugal_nav::bundle::device_ms(
+            compute_ms,
+            int8_ms,
+            self.slowdown,
+            self.slowdown_int8.unwrap_or(self.slowdown),
+        )
+    }
+
+    /// Fails unless the slowdowns are positive and finite.
+    pub fn check(&self) -> Result<(), String> {
+        let ok = |s: f64| s > 0.0 && s.is_finite();
+        if !ok(self.slowdown) {
+            return Err(format!(
+                "device slowdown must be positive, got {}",
+                self.slowdown
+            ));
+        }
+        match self.slowdown_int8 {
+            Some(s) if !ok(s) => Err(format!("device int8 slowdown must be positive, got {s}")),
+            _ => Ok(()),
         }
     }
 }

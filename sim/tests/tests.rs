@@ -793,6 +793,64 @@ fn a_missing_turn_sign_ends_in_a_collision() {
     assert_eq!(r.events.last().unwrap().what, "collision");
 }
 
+/// The part of a frame's compute spent in int8 detectors is charged by the device's
+/// int8 slowdown, the rest by its slowdown: a flight whose every millisecond is int8
+/// flies on a (6, int8 3) device exactly as on a device of slowdown 3, and one without
+/// int8 time exactly as on a device of slowdown 6.
+#[test]
+fn int8_compute_is_charged_by_the_devices_int8_slowdown() {
+    let maze = corridor("sign stop 4 1 e 1.2");
+    let fly_on = |slowdown: f64, slowdown_int8: Option<f64>, int8_share: f64| {
+        let mut gt = GroundTruthPerception {
+            compute_ms: 10.0,
+            ..GroundTruthPerception::default()
+        };
+        let mut perception = |input: &FrameInput<'_>| -> Result<Percept, PerceptionError> {
+            let p = frugal_sim::Perception::perceive(&mut gt, input)?;
+            Ok(Percept {
+                int8_ms: p.compute_ms * int8_share,
+                ..p
+            })
+        };
+        let config = FlightConfig {
+            device: DeviceProfile {
+                name: "test".into(),
+                slowdown,
+                slowdown_int8,
+            },
+            ..fast_config()
+        };
+        let r = frugal_sim::fly(&maze, &config, &mut perception, 1, None).unwrap();
+        (r.frames, r.time_s, r.outcome)
+    };
+    let all_int8 = fly_on(6.0, Some(3.0), 1.0);
+    assert_eq!(all_int8, fly_on(3.0, None, 1.0));
+    assert_eq!(all_int8, fly_on(3.0, None, 0.0));
+    let no_int8 = fly_on(6.0, Some(3.0), 0.0);
+    assert_eq!(no_int8, fly_on(6.0, None, 0.0));
+    assert_eq!(no_int8, fly_on(6.0, None, 1.0));
+    // 60 device ms a frame against 30: fewer frames over the same corridor
+    assert!(no_int8.0 < all_int8.0, "{no_int8:?} against {all_int8:?}");
+    // half and half lies between
+    let half = fly_on(6.0, Some(3.0), 0.5);
+    assert!(no_int8.0 < half.0 && half.0 < all_int8.0, "{half:?}");
+
+    let bad = FlightConfig {
+        device: DeviceProfile {
+            name: "test".into(),
+            slowdown: 6.0,
+            slowdown_int8: Some(f64::NAN),
+        },
+        ..fast_config()
+    };
+    let mut gt = GroundTruthPerception::default();
+    let e = frugal_sim::fly(&maze, &bad, &mut gt, 1, None).unwrap_err();
+    assert!(
+        e.to_string().contains("int8 slowdown must be positive"),
+        "{e}"
+    );
+}
+
 #[test]
 fn perception_errors_name_the_frame() {
     let maze = corridor("sign stop 4 1 e 1.2");
@@ -804,6 +862,7 @@ fn perception_errors_name_the_frame() {
                 detections: Vec::new(),
                 compute_ms: 10.0,
                 tracked: false,
+                int8_ms: 0.0,
             })
         }
     };

@@ -127,6 +127,11 @@ fn fly_reports_bad_maze_lines_and_unknown_devices() {
     ])
     .expect_err("carry without the adaptive runtime");
     assert!(e.contains("--carry") && e.contains("adaptive"), "{e}");
+    for s in ["--slowdown-int8=0", "--slowdown-int8=inf"] {
+        let e = frugal(&["fly", "--maze", p(&maze("easy.maze")), s, "--quiet"])
+            .expect_err("int8 slowdown");
+        assert!(e.contains("--slowdown-int8 must be positive"), "{s}: {e}");
+    }
     for fps in ["--camera-fps=0", "--camera-fps=-30", "--camera-fps=NaN"] {
         let e = frugal(&["fly", "--maze", p(&maze("easy.maze")), fps, "--quiet"])
             .expect_err("camera rate");

@@ -238,6 +238,18 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
     // controller's trigger (the first frame by `Start`), confirmations, and runs per
     // variant, which cover every detection and confirmation
     let flight = &json(&run.join("flights/adaptive/easy/flights.json"))[0];
+    // both sides fly the budget stage's device, int8 speed included
+    let device = &json(&run.join("budget/policy.json"))["budget"]["config"];
+    for side in ["static", "adaptive"] {
+        let f = &json(&run.join(format!("flights/{side}/easy/flights.json")))[0];
+        for key in ["slowdown", "slowdown_int8"] {
+            let (a, b) = (f["device"][key].as_f64(), device[key].as_f64());
+            assert!(
+                a.is_some() && a == b,
+                "{side} flight's {key} {a:?}, the budget stage's {b:?}"
+            );
+        }
+    }
     let counts: BTreeMap<String, u64> = flight["perception_counts"]
         .as_array()
         .expect("perception_counts")

@@ -70,6 +70,13 @@ pub struct FlyArgs {
     /// Override the device's slowdown factor.
     #[arg(long)]
     pub slowdown: Option<f64>,
+    /// The device's slowdown for int8 detectors, when its int8 speed relative to this
+    /// machine is not its fp32 one (`frugal run` passes the budget stage's: the device
+    /// profile's int8 reference over this machine's). The static variant is int8 when
+    /// its `variant.json` says so; the bundle's variants when its `precision:` metadata
+    /// does.
+    #[arg(long)]
+    pub slowdown_int8: Option<f64>,
     /// Camera width, pixels.
     #[arg(long, default_value_t = 480)]
     pub width: u32,
@@ -136,9 +143,20 @@ fn perception(args: &FlyArgs, config: &FlightConfig) -> anyhow::Result<Box<dyn P
                 .variant
                 .as_ref()
                 .context("--perception static needs --variant DIR (an ONNX export)")?;
-            Box::new(
-                frugal_sim::static_onnx(dir, args.threads).map_err(|e| anyhow::anyhow!("{e}"))?,
-            )
+            let mut p =
+                frugal_sim::static_onnx(dir, args.threads).map_err(|e| anyhow::anyhow!("{e}"))?;
+            if config.device.slowdown_int8.is_some() {
+                let record = dir.join(frugal_models::compress::VARIANT_FILE);
+                p.int8 = frugal_models::compress::read_record(&record)
+                    .with_context(|| {
+                        format!(
+                            "--slowdown-int8 needs the static variant's precision: {}",
+                            record.display()
+                        )
+                    })?
+                    .int8;
+            }
+            Box::new(p)
         }
         PerceptionKind::Adaptive => {
             let dir = args
@@ -150,12 +168,7 @@ fn perception(args: &FlyArgs, config: &FlightConfig) -> anyhow::Result<Box<dyn P
                 .with_carry(args.carry);
             if let Some(b) = args.budget_ms {
                 p = p
-                    .with_budget(
-                        b,
-                        args.keep_window,
-                        config.device.slowdown,
-                        config.nav.camera_fps,
-                    )
+                    .with_budget(b, args.keep_window, &config.device, config.nav.camera_fps)
                     .map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
             }
             Box::new(p)
@@ -179,6 +192,14 @@ pub fn run(args: FlyArgs) -> anyhow::Result<()> {
         device.slowdown = s;
         // the tables and files name the device by its label: say what it now is
         device.name = format!("{} at slowdown {s}", device.name);
+    }
+    if let Some(s) = args.slowdown_int8 {
+        anyhow::ensure!(
+            s > 0.0 && s.is_finite(),
+            "--slowdown-int8 must be positive, got {s}"
+        );
+        device.slowdown_int8 = Some(s);
+        device.name = format!("{} (int8 {s})", device.name);
     }
     anyhow::ensure!(args.seeds >= 1, "--seeds must be at least 1");
     anyhow::ensure!(

@@ -8,7 +8,7 @@ use frugal_policies::bundle::{BUNDLE_FILE, inspect, read_bundle, verify, write_b
 use frugal_policies::eval::{EvalConfig, Strategy, run_with_bundle, strategy_bundle};
 use frugal_policies::replay::VideoLog;
 use frugal_policies::train::{TrainedPolicy, train};
-use frugal_policies::variants::VariantSource;
+use frugal_policies::variants::{Precision, VariantSource};
 use frugal_runtime::Bundle;
 use frugal_runtime::bundle::Bucket;
 use frugal_runtime::pilot::Carry;
@@ -41,7 +41,8 @@ fn policy_with_files(
 #[test]
 fn written_bundle_verifies_and_the_runtime_decides_as_the_replay() {
     let dir = tempfile::tempdir().unwrap();
-    let (log, frames, policy) = policy_with_files(dir.path());
+    let (log, frames, mut policy) = policy_with_files(dir.path());
+    policy.variants[1].precision = Precision::Int8;
     let cfg = EvalConfig::default();
     let out = dir.path().join("bundle");
     let file = write_bundle(&policy, cfg.thresholds(), &out).unwrap();
@@ -75,6 +76,10 @@ fn written_bundle_verifies_and_the_runtime_decides_as_the_replay() {
         b.metadata_get("hog:cheap"),
         Some("hog/features-model.json 200,2,8,9")
     );
+    // the int8 variant is marked, so a simulated device can charge it by its int8 speed
+    assert_eq!(b.metadata_get("precision:expensive"), Some("int8"));
+    assert_eq!(b.metadata_get("precision:cheap"), None);
+    assert_eq!(frugal_nav::bundle::int8_variants(&b), [false, true]);
     assert_eq!(
         b.variant(1).unwrap().onnx_file,
         "onnx/expensive/backbone_rpn.onnx"

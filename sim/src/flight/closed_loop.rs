@@ -33,12 +33,7 @@ pub fn fly(
             "v_max, react_distance, time_limit_s and camera_fps must be positive".into(),
         ));
     }
-    if !(config.device.slowdown > 0.0 && config.device.slowdown.is_finite()) {
-        return Err(FlightError::Config(format!(
-            "device slowdown must be positive, got {}",
-            config.device.slowdown
-        )));
-    }
+    config.device.check().map_err(FlightError::Config)?;
     if cam.width < 16 || cam.height < 16 || !(1.0..179.0).contains(&cam.hfov_deg) {
         return Err(FlightError::Config(format!(
             "camera {}×{} with {}° field of view",
@@ -82,8 +77,8 @@ pub fn fly(
     let (mut compute_total, mut render_total) = (0.0, 0.0);
     let (mut sign_frames, mut sign_hits, mut false_detections) = (0u64, 0u64, 0u64);
     let mut confirmation_reads = Vec::new();
-    // compute time of confirmations, charged to the next interval
-    let mut pending_ms = 0.0;
+    // device time of confirmations, charged to the next interval, s
+    let mut pending_s = 0.0;
     let min_dt = 1.0 / nav.camera_fps;
     let outcome;
 
@@ -130,8 +125,9 @@ pub fn fly(
             &mut sign_hits,
             &mut false_detections,
         );
-        let compute_ms = percept.compute_ms.max(0.0) + std::mem::take(&mut pending_ms);
-        let dt = (compute_ms / 1e3 * config.device.slowdown).max(min_dt);
+        let dt = config.device.device_ms(percept.compute_ms, percept.int8_ms) / 1e3
+            + std::mem::take(&mut pending_s);
+        let dt = dt.max(min_dt);
         // the camera frames perception drops before the next one it takes
         let dt = dt + perception.camera_wait_s(t + dt, min_dt);
         dt_avg = Some(dt_avg.map_or(dt, |a| a * 0.7 + dt * 0.3));
@@ -212,7 +208,7 @@ pub fn fly(
             &input_nav,
             || match perception.confirm(&input) {
                 Ok(Some(check)) => {
-                    pending_ms += check.compute_ms.max(0.0);
+                    pending_s += config.device.device_ms(check.compute_ms, check.int8_ms) / 1e3;
                     compute_total += check.compute_ms.max(0.0);
                     confirm_read = Some(Some(check.detections.clone()));
                     Ok(Some(check.detections))

@@ -3,7 +3,9 @@
 //!
 //! Timing model. Frame `k` is captured at simulated time `t_k` (the world — drone pose,
 //! pedestrians — as it is then). Perception takes `dt_k = compute_ms / 1000 × slowdown`
-//! seconds (at least one camera period); during `[t_k, t_k + dt_k]` the drone keeps
+//! seconds (at least one camera period; the part spent in int8 detectors × the
+//! profile's int8 slowdown when it states one, [`crate::DeviceProfile::device_ms`]);
+//! during `[t_k, t_k + dt_k]` the drone keeps
 //! flying on the command decided from the previous frame; at `t_{k+1} = t_k + dt_k`
 //! the navigator decides from frame `k`'s detections and the next frame is captured.
 //!

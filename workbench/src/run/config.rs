@@ -411,7 +411,7 @@ impl RunConfig {
                 flights: FlightSettings {
                     mazes: vec!["easy".into()],
                     seeds: 1,
-                    device: "host".into(),
+                    device: "tx2-like".into(),
                     width: 160,
                     height: 90,
                     time_limit_s: 4.0,

@@ -741,14 +741,21 @@ impl Ctx {
     fn flights(&self, out: &Path) -> anyhow::Result<Vec<String>> {
         let f = &self.config.flights;
         let (static_name, static_dir) = self.static_variant()?;
-        // the budget stage's device flies the same: its speed scaled by the reference
-        // detector's latency on this machine (timed by the Pareto stage), when known
+        // the budget stage's device flies the same: its speeds scaled by the reference
+        // detectors' latencies on this machine (timed by the Pareto stage), fp32 and
+        // int8, when known
         let variants = self.dir("pareto").join("variants.json");
-        let reference = frugal_policies::variants::VariantsFile::read(&variants)?.reference_ms;
+        let file = frugal_policies::variants::VariantsFile::read(&variants)?;
         let budget = &self.config.budget;
-        let slowdown = reference
-            .filter(|_| f.device == budget.device && budget.device_reference_ms.is_some())
+        let same_device = f.device == budget.device;
+        let slowdown = file
+            .reference_ms
+            .filter(|_| same_device && budget.device_reference_ms.is_some())
             .map(|h| budget.device_slowdown(Some(h)).to_string());
+        let slowdown_int8 = budget
+            .device_slowdown_int8(file.reference_int8_ms)
+            .filter(|_| slowdown.is_some())
+            .map(|s| s.to_string());
         let common = |perception: &str| {
             let mut a: Vec<String> = vec!["fly".into()];
             for m in &f.mazes {
@@ -776,6 +783,9 @@ impl Ctx {
             ]);
             if let Some(s) = &slowdown {
                 a.extend(["--slowdown".into(), s.clone()]);
+            }
+            if let Some(s) = &slowdown_int8 {
+                a.extend(["--slowdown-int8".into(), s.clone()]);
             }
             a
         };
