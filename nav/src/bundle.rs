@@ -90,13 +90,19 @@ pub enum BundleError {
 /// `frugal bundle write` records the second graph of each ONNX variant.
 pub const FILE_KEY: &str = "file:";
 
-/// Bundle metadata key prefix of a variant's numeric precision
-/// (`precision:<variant>` = `int8`), as `frugal bundle write` marks the int8 variants;
-/// a variant without one is fp32.
+/// Bundle metadata key prefix of a variant's numeric precision (`precision:<variant>`
+/// = [`INT8`] or [`FP32`]), as `frugal bundle write` marks every variant.
 pub const PRECISION_KEY: &str = "precision:";
 
 /// The value of [`PRECISION_KEY`] for an int8 variant.
 pub const INT8: &str = "int8";
+
+/// The value of [`PRECISION_KEY`] for an fp32 variant.
+pub const FP32: &str = "fp32";
+
+/// Why a bundle that does not mark its variants' precision cannot fly a device with an
+/// int8 speed of its own.
+pub const NO_PRECISION: &str = "the bundle does not mark its variants' precision (`precision:<variant>` metadata, written by `frugal bundle write` since 2026-12-05), so its int8 variants cannot be charged by the device's int8 slowdown: write the bundle again, or fly without an int8 slowdown";
 
 /// Device ms for `compute_ms` measured on a machine that stands in for the device,
 /// `int8_ms` of it in int8 detectors: the int8 part × `slowdown_int8`, the rest ×
@@ -107,16 +113,23 @@ pub fn device_ms(compute_ms: f64, int8_ms: f64, slowdown: f64, slowdown_int8: f6
     (compute_ms - int8_ms) * slowdown + int8_ms * slowdown_int8
 }
 
-/// Per variant of `bundle`, in bundle order: whether its metadata marks it int8.
-pub fn int8_variants(bundle: &Bundle<'_>) -> Vec<bool> {
-    bundle
-        .variants()
-        .map(|(_, v)| {
-            bundle
-                .metadata()
-                .any(|(k, val)| k.strip_prefix(PRECISION_KEY) == Some(v.name) && val == INT8)
-        })
-        .collect()
+/// Per variant of `bundle`, in bundle order: whether its metadata marks it int8;
+/// `None` for a bundle that marks no variant's precision (written before bundles did),
+/// whose int8 variants cannot be told.
+pub fn int8_variants(bundle: &Bundle<'_>) -> Option<Vec<bool>> {
+    if !bundle.metadata().any(|(k, _)| k.starts_with(PRECISION_KEY)) {
+        return None;
+    }
+    Some(
+        bundle
+            .variants()
+            .map(|(_, v)| {
+                bundle
+                    .metadata()
+                    .any(|(k, val)| k.strip_prefix(PRECISION_KEY) == Some(v.name) && val == INT8)
+            })
+            .collect(),
+    )
 }
 
 /// Lower-case hex of `bytes`.
@@ -209,7 +222,8 @@ pub struct BundlePerception {
     /// The same for the time spent in int8 variants, when it differs
     /// ([`BundlePerception::with_int8_debit_scale`]).
     int8_debit_scale: Option<f32>,
-    /// Per variant, whether the bundle marks it int8 ([`int8_variants`]).
+    /// Per variant, whether the bundle marks it int8 ([`int8_variants`]; none marked
+    /// when the bundle does not say).
     int8: Vec<bool>,
     /// Flying a budget table of a bundle that records the tables' frame interval: the
     /// clock that numbers the frames ([`BundlePerception::frame_number`]).
@@ -261,7 +275,7 @@ impl BundlePerception {
             budget_ms: None,
             debit_scale: 1.0,
             int8_debit_scale: None,
-            int8: int8_variants(&bundle),
+            int8: int8_variants(&bundle).unwrap_or_default(),
             table_clock: None,
         })
     }
@@ -372,8 +386,12 @@ impl BundlePerception {
     /// Debit the time spent in the variants the bundle marks int8 ([`int8_variants`])
     /// `scale` device ms per measured ms instead of [`BundlePerception::with_debit_scale`]'s,
     /// for a simulated device whose int8 speed relative to the measuring machine is not
-    /// its fp32 one. Fails unless `scale` is positive and finite.
+    /// its fp32 one. Fails unless `scale` is positive and finite, and for a bundle that
+    /// does not mark its variants' precision.
     pub fn with_int8_debit_scale(mut self, scale: f32) -> Result<Self, PerceptionError> {
+        if int8_variants(&self.bundle).is_none() {
+            return Err(NO_PRECISION.into());
+        }
         if !(scale > 0.0 && scale.is_finite()) {
             return Err(
                 format!("the keeper's int8 debit scale must be positive, got {scale}").into(),

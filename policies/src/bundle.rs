@@ -28,7 +28,7 @@ use std::path::{Path, PathBuf};
 
 /// The bundle's file name inside a bundle folder, and the metadata key prefix of extra
 /// files: the drone side's, which reads and checks what this module writes.
-pub use frugal_nav::bundle::{BUNDLE_FILE, FILE_KEY, INT8, PRECISION_KEY};
+pub use frugal_nav::bundle::{BUNDLE_FILE, FILE_KEY, FP32, INT8, PRECISION_KEY};
 /// The graph that takes the variant's file slot when present.
 pub const PRIMARY_GRAPH: &str = "backbone_rpn.onnx";
 
@@ -115,16 +115,18 @@ pub fn bundle_bytes(
     })
 }
 
-/// The metadata a trained policy puts into its bundle: how it was made, and each int8
-/// variant's precision (`precision:<variant>` = `int8`, read by a simulated device
-/// that charges int8 by its own speed).
+/// The metadata a trained policy puts into its bundle: how it was made, and each
+/// variant's precision (`precision:<variant>` = `int8` or `fp32`, read by a simulated
+/// device that charges int8 by its own speed).
 pub fn policy_metadata(policy: &TrainedPolicy) -> Vec<(String, String)> {
     let c = &policy.config;
-    let int8 = policy
-        .variants
-        .iter()
-        .filter(|v| v.precision == Precision::Int8)
-        .map(|v| (format!("{PRECISION_KEY}{}", v.name), INT8.to_owned()));
+    let precisions = policy.variants.iter().map(|v| {
+        let p = match v.precision {
+            Precision::Int8 => INT8,
+            Precision::Fp32 => FP32,
+        };
+        (format!("{PRECISION_KEY}{}", v.name), p.to_owned())
+    });
     let mut meta = vec![
         (
             "created-by".into(),
@@ -149,7 +151,7 @@ pub fn policy_metadata(policy: &TrainedPolicy) -> Vec<(String, String)> {
                 .join(","),
         ),
     ];
-    meta.extend(int8);
+    meta.extend(precisions);
     meta
 }
 

@@ -47,6 +47,18 @@ impl AdaptivePerception {
         BundlePerception::open(dir, threads).map(|inner| Self { inner, dropped: 0 })
     }
 
+    /// Fails when `device` charges int8 by a slowdown of its own and the bundle does not
+    /// mark its variants' precision ([`frugal_nav::bundle::NO_PRECISION`]): its int8
+    /// variants would be charged as fp32.
+    pub fn check_device(&self, device: &DeviceProfile) -> Result<(), PerceptionError> {
+        if device.slowdown_int8.is_some()
+            && frugal_nav::bundle::int8_variants(self.inner.bundle()).is_none()
+        {
+            return Err(frugal_nav::bundle::NO_PRECISION.into());
+        }
+        Ok(())
+    }
+
     /// Carry detections from `carry`'s bucket up ([`BundlePerception::with_carry`]).
     pub fn with_carry(self, carry: Carry) -> Self {
         Self {

@@ -821,6 +821,13 @@ fn int8_compute_is_charged_by_the_devices_int8_slowdown() {
             ..fast_config()
         };
         let r = frugal_sim::fly(&maze, &config, &mut perception, 1, None).unwrap();
+        // the result reports the int8 part of the mean compute
+        assert!(
+            (r.int8_ms_mean - r.compute_ms_mean * int8_share).abs() < 1e-9,
+            "{} of {} ms at share {int8_share}",
+            r.int8_ms_mean,
+            r.compute_ms_mean
+        );
         (r.frames, r.time_s, r.outcome)
     };
     let all_int8 = fly_on(6.0, Some(3.0), 1.0);

@@ -250,6 +250,28 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
             );
         }
     }
+    // and each reports its int8 detectors' time as such: the static variant's whole
+    // compute when it is int8 (none when fp32), the adaptive side's when one ran (the
+    // tiny run's variants may all be fp32; the sim test
+    // `int8_compute_is_charged_by_the_devices_int8_slowdown` covers int8 time)
+    let int8: Vec<String> = json(&run.join("pareto/variants.json"))["variants"]
+        .as_array()
+        .expect("variants")
+        .iter()
+        .filter(|v| v["precision"] == "int8")
+        .map(|v| v["name"].as_str().unwrap().to_string())
+        .collect();
+    let st = &json(&run.join("flights/static/easy/flights.json"))[0];
+    let name = st["perception"]
+        .as_str()
+        .unwrap()
+        .trim_start_matches("static-");
+    let (compute, in_int8) = (st["compute_ms_mean"].as_f64(), st["int8_ms_mean"].as_f64());
+    if int8.iter().any(|v| v == name) {
+        assert!(compute > Some(0.0) && in_int8 == compute, "{name}: {st}");
+    } else {
+        assert_eq!(in_int8, Some(0.0), "{name}: {st}");
+    }
     let counts: BTreeMap<String, u64> = flight["perception_counts"]
         .as_array()
         .expect("perception_counts")
@@ -257,6 +279,16 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
         .map(|c| (c[0].as_str().unwrap().to_string(), c[1].as_u64().unwrap()))
         .collect();
     assert_eq!(counts["frames detected: Start"], 1, "{counts:?}");
+    let int8_runs: u64 = int8
+        .iter()
+        .filter_map(|v| counts.get(&format!("runs of {v}")))
+        .sum();
+    let in_int8 = flight["int8_ms_mean"].as_f64().expect("int8_ms_mean");
+    assert_eq!(int8_runs > 0, in_int8 > 0.0, "{in_int8} ms, {counts:?}");
+    assert!(
+        in_int8 <= flight["compute_ms_mean"].as_f64().unwrap(),
+        "{flight}"
+    );
     let sum = |prefix: &str| -> u64 {
         counts
             .iter()

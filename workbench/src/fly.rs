@@ -166,6 +166,8 @@ fn perception(args: &FlyArgs, config: &FlightConfig) -> anyhow::Result<Box<dyn P
             let mut p = frugal_sim::AdaptivePerception::open(dir, args.threads)
                 .map_err(|e| anyhow::anyhow!("{e}"))?
                 .with_carry(args.carry);
+            p.check_device(&config.device)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
             if let Some(b) = args.budget_ms {
                 p = p
                     .with_budget(b, args.keep_window, &config.device, config.nav.camera_fps)

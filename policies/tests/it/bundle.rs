@@ -78,8 +78,28 @@ fn written_bundle_verifies_and_the_runtime_decides_as_the_replay() {
     );
     // the int8 variant is marked, so a simulated device can charge it by its int8 speed
     assert_eq!(b.metadata_get("precision:expensive"), Some("int8"));
-    assert_eq!(b.metadata_get("precision:cheap"), None);
-    assert_eq!(frugal_nav::bundle::int8_variants(&b), [false, true]);
+    assert_eq!(b.metadata_get("precision:cheap"), Some("fp32"));
+    assert_eq!(
+        frugal_nav::bundle::int8_variants(&b),
+        Some(vec![false, true])
+    );
+    // a bundle written before precisions were marked cannot tell its int8 variants
+    let bytes = frugal_policies::bundle::bundle_bytes(
+        &policy.families,
+        &policy.variants,
+        &[],
+        cfg.thresholds(),
+        policy.initial,
+        policy.reference,
+        &policy.actions,
+        None,
+        &[],
+    )
+    .unwrap();
+    assert_eq!(
+        frugal_nav::bundle::int8_variants(&Bundle::parse(&bytes).unwrap()),
+        None
+    );
     assert_eq!(
         b.variant(1).unwrap().onnx_file,
         "onnx/expensive/backbone_rpn.onnx"

@@ -74,7 +74,7 @@ pub fn fly(
     }];
     let mut events = Vec::new();
     let mut frames = 0u64;
-    let (mut compute_total, mut render_total) = (0.0, 0.0);
+    let (mut compute_total, mut render_total, mut int8_total) = (0.0, 0.0, 0.0);
     let (mut sign_frames, mut sign_hits, mut false_detections) = (0u64, 0u64, 0u64);
     let mut confirmation_reads = Vec::new();
     // device time of confirmations, charged to the next interval, s
@@ -118,6 +118,7 @@ pub fn fly(
                 source,
             })?;
         compute_total += percept.compute_ms;
+        int8_total += percept.int8_ms;
         score(
             &truth,
             &percept.detections,
@@ -210,6 +211,7 @@ pub fn fly(
                 Ok(Some(check)) => {
                     pending_s += config.device.device_ms(check.compute_ms, check.int8_ms) / 1e3;
                     compute_total += check.compute_ms.max(0.0);
+                    int8_total += check.int8_ms.max(0.0);
                     confirm_read = Some(Some(check.detections.clone()));
                     Ok(Some(check.detections))
                 }
@@ -301,6 +303,7 @@ pub fn fly(
         path_m: odo,
         avg_velocity: if t > 0.0 { odo / t } else { 0.0 },
         compute_ms_mean: compute_total / n,
+        int8_ms_mean: int8_total / n,
         render_ms_mean: render_total / n,
         wait_s,
         sign_frames,

@@ -107,6 +107,10 @@ pub struct FlightResult {
     pub avg_velocity: f64,
     /// Mean perception compute time (before the slowdown), ms.
     pub compute_ms_mean: f64,
+    /// Of it, the mean time in int8 detectors ([`crate::Percept::int8_ms`]), ms: the
+    /// part charged by the device's int8 slowdown when it states one.
+    #[serde(default)]
+    pub int8_ms_mean: f64,
     /// Mean wall-clock render time per frame on this machine, ms.
     pub render_ms_mean: f64,
     /// Simulated seconds spent hovering at WAIT signs or for pedestrians.
