@@ -132,6 +132,13 @@ pub fn int8_variants(bundle: &Bundle<'_>) -> Option<Vec<bool>> {
     )
 }
 
+/// Per variant of `bundle`, whether it is int8 ([`int8_variants`]), for a device that
+/// charges int8 by a speed of its own; fails with [`NO_PRECISION`] for a bundle that
+/// does not mark its variants' precision, whose int8 variants would be charged as fp32.
+pub fn int8_variants_or_refuse(bundle: &Bundle<'_>) -> Result<Vec<bool>, PerceptionError> {
+    int8_variants(bundle).ok_or_else(|| NO_PRECISION.into())
+}
+
 /// Lower-case hex of `bytes`.
 pub fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
@@ -389,9 +396,7 @@ impl BundlePerception {
     /// its fp32 one. Fails unless `scale` is positive and finite, and for a bundle that
     /// does not mark its variants' precision.
     pub fn with_int8_debit_scale(mut self, scale: f32) -> Result<Self, PerceptionError> {
-        if int8_variants(&self.bundle).is_none() {
-            return Err(NO_PRECISION.into());
-        }
+        int8_variants_or_refuse(&self.bundle)?;
         if !(scale > 0.0 && scale.is_finite()) {
             return Err(
                 format!("the keeper's int8 debit scale must be positive, got {scale}").into(),

@@ -51,10 +51,8 @@ impl AdaptivePerception {
     /// mark its variants' precision ([`frugal_nav::bundle::NO_PRECISION`]): its int8
     /// variants would be charged as fp32.
     pub fn check_device(&self, device: &DeviceProfile) -> Result<(), PerceptionError> {
-        if device.slowdown_int8.is_some()
-            && frugal_nav::bundle::int8_variants(self.inner.bundle()).is_none()
-        {
-            return Err(frugal_nav::bundle::NO_PRECISION.into());
+        if device.slowdown_int8.is_some() {
+            frugal_nav::bundle::int8_variants_or_refuse(self.inner.bundle())?;
         }
         Ok(())
     }

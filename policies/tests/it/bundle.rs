@@ -96,9 +96,14 @@ fn written_bundle_verifies_and_the_runtime_decides_as_the_replay() {
         &[],
     )
     .unwrap();
+    let unmarked = Bundle::parse(&bytes).unwrap();
+    assert_eq!(frugal_nav::bundle::int8_variants(&unmarked), None);
+    // so a device with an int8 speed of its own refuses it, saying why
+    let e = frugal_nav::bundle::int8_variants_or_refuse(&unmarked).unwrap_err();
+    assert_eq!(e.to_string(), frugal_nav::bundle::NO_PRECISION);
     assert_eq!(
-        frugal_nav::bundle::int8_variants(&Bundle::parse(&bytes).unwrap()),
-        None
+        frugal_nav::bundle::int8_variants_or_refuse(&b).unwrap(),
+        vec![false, true]
     );
     assert_eq!(
         b.variant(1).unwrap().onnx_file,
