@@ -261,6 +261,14 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
         .filter(|v| v["precision"] == "int8")
         .map(|v| v["name"].as_str().unwrap().to_string())
         .collect();
+    // the bundle marks every variant's precision as the Pareto stage recorded it
+    let bytes = std::fs::read(run.join("bundle").join(frugal_nav::BUNDLE_FILE)).expect("bundle");
+    let bundle = frugal_runtime::Bundle::parse(&bytes).expect("bundle parses");
+    let marked: Vec<bool> = bundle
+        .variants()
+        .map(|(_, v)| int8.iter().any(|n| n == v.name))
+        .collect();
+    assert_eq!(frugal_nav::bundle::int8_variants(&bundle), Some(marked));
     let st = &json(&run.join("flights/static/easy/flights.json"))[0];
     let name = st["perception"]
         .as_str()
