@@ -324,8 +324,9 @@ fn the_runtime_pilot_runs_the_budget_policy_as_the_evaluation() {
     assert!(postponed > 0, "the budget keeper postponed no detection");
 }
 
-/// Every variant's latency changed by ±15 % (as on another machine) moves the
-/// budget policy's streaming figures little. Stated bounds: at every budget, the
+/// Every variant's latency and the tracker's costs changed by ±15 % (as on another
+/// machine), together and apart, move the budget policy's streaming figures little.
+/// Stated bounds: at every budget, the
 /// policy's sAP@0.5 on the test videos moves by at most 10 points and its device time
 /// per frame stays within the (perturbed) budget whenever an action fits it.
 #[test]
@@ -335,14 +336,15 @@ fn a_fifteen_percent_change_of_every_latency_moves_the_budget_policy_little() {
     let mut policy = train(&log, &PolicyConfig::default()).unwrap();
     let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
     let figures = |log: &frugal_policies::ReplayLog,
+                   cost: TrackerCost,
                    policy: &mut frugal_policies::TrainedPolicy| {
-        let pol = train_budget(log, &frames, COST, &cfg, 0.5).unwrap();
+        let pol = train_budget(log, &frames, cost, &cfg, 0.5).unwrap();
         policy.budget = Some(pol.clone());
         policy.variants = log.variants.clone();
         let bytes =
             frugal_policies::bundle::policy_bundle(policy, EvalConfig::default().thresholds())
                 .unwrap();
-        let runs = stream_all(log, &videos, &frames, COST, &pol, &bytes, 0.5, &|| {}).unwrap();
+        let runs = stream_all(log, &videos, &frames, cost, &pol, &bytes, 0.5, &|| {}).unwrap();
         let scores = budget_scores(log, &videos, &pol, &runs, 0.5);
         let fits: Vec<bool> = cfg
             .budgets_ms
@@ -351,13 +353,26 @@ fn a_fifteen_percent_change_of_every_latency_moves_the_budget_policy_little() {
             .collect();
         (scores, fits)
     };
-    let (base, _) = figures(&log, &mut policy);
-    for factors in [[0.85, 1.0, 1.15], [1.15, 1.0, 0.85], [1.15, 0.85, 1.15]] {
+    let (base, _) = figures(&log, COST, &mut policy);
+    // (each variant's factor, the tracker's)
+    for (factors, tracker) in [
+        ([0.85, 1.0, 1.15], 1.15),
+        ([1.15, 1.0, 0.85], 0.85),
+        ([1.15, 0.85, 1.15], 1.0),
+        ([1.0; 3], 1.15),
+        ([1.0; 3], 0.85),
+    ] {
         let mut moved = log.clone();
         for (v, f) in moved.variants.iter_mut().zip(factors) {
             v.latency_ms *= f;
         }
-        let (scores, fits) = figures(&moved, &mut policy);
+        let cost = TrackerCost {
+            pyramid_ms: COST.pyramid_ms * tracker,
+            track_ms: COST.track_ms * tracker,
+            init_ms: COST.init_ms * tracker,
+            ..COST
+        };
+        let (scores, fits) = figures(&moved, cost, &mut policy);
         for (k, &budget) in cfg.budgets_ms.iter().enumerate() {
             let pick = |s: &[frugal_policies::budget_eval::BudgetScore]| {
                 s.iter()
@@ -370,7 +385,7 @@ fn a_fifteen_percent_change_of_every_latency_moves_the_budget_policy_little() {
             let (a, b) = (pick(&base), pick(&scores));
             assert!(
                 (a.sap50 - b.sap50).abs() <= 0.10,
-                "budget {budget} ×{factors:?}: sAP {} → {}",
+                "budget {budget} ×{factors:?}, tracker ×{tracker}: sAP {} → {}",
                 a.sap50,
                 b.sap50
             );
@@ -378,7 +393,7 @@ fn a_fifteen_percent_change_of_every_latency_moves_the_budget_policy_little() {
                 // a little slack for the segments the test videos end early
                 assert!(
                     b.timing.device_ms_per_frame <= budget * 1.15,
-                    "budget {budget} ×{factors:?}: {} ms per frame",
+                    "budget {budget} ×{factors:?}, tracker ×{tracker}: {} ms per frame",
                     b.timing.device_ms_per_frame
                 );
             }
