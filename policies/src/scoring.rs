@@ -22,6 +22,24 @@ pub struct TrackerCost {
     pub init_ms: f64,
     /// Samples behind each median (pyramid, track, init).
     pub samples: (usize, usize, usize),
+    /// The reference tracker's median ([`crate::eval::ReferenceTracker`]), timed
+    /// between the calls behind the medians above: the tracker's anchor. `None` for
+    /// costs kept before it was timed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_ms: Option<f64>,
+}
+
+impl TrackerCost {
+    /// Every cost times `k` (the reference's too).
+    pub fn scaled(self, k: f64) -> Self {
+        Self {
+            pyramid_ms: self.pyramid_ms * k,
+            track_ms: self.track_ms * k,
+            init_ms: self.init_ms * k,
+            reference_ms: self.reference_ms.map(|r| r * k),
+            ..self
+        }
+    }
 }
 
 pub(crate) fn median(v: &mut [f64]) -> f64 {

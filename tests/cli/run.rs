@@ -250,6 +250,24 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
             );
         }
     }
+    // the tracker is on the device by its own anchor: the reference tracker, timed
+    // between its calls and put on the device with them, takes the profile's time
+    let budget = &json(&run.join("budget/policy.json"))["budget"];
+    let (r, s, d) = (
+        budget["tracker_cost"]["reference_ms"].as_f64(),
+        budget["config"]["slowdown"].as_f64(),
+        budget["config"]["device_tracker_reference_ms"].as_f64(),
+    );
+    assert!(
+        budget["config"]["slowdown_tracker"].as_f64().is_some(),
+        "{budget}"
+    );
+    let (r, s, d) = (
+        r.expect("reference_ms"),
+        s.expect("slowdown"),
+        d.expect("anchor"),
+    );
+    assert!((r * s - d).abs() < 1e-6 * d, "{r} × {s} against {d}");
     // and each reports its int8 detectors' time as such: the static variant's whole
     // compute when it is int8 (none when fp32), the adaptive side's when one ran (the
     // tiny run's variants may all be fp32; the sim test

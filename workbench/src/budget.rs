@@ -129,7 +129,7 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
         let cost = match stored {
             Some(c) => {
                 println!(
-                    "tracker cost the tables were made with: pyramid {:.3} ms, track {:.3} ms/object, init {:.3} ms/object",
+                    "tracker cost the tables were made with (device ms over the slowdown): pyramid {:.3} ms, track {:.3} ms/object, init {:.3} ms/object",
                     c.pyramid_ms, c.track_ms, c.init_ms
                 );
                 c
@@ -169,14 +169,28 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
     }
     cfg.slowdown = slowdown;
     cfg.slowdown_int8 = cfg.device_slowdown_int8(log.reference_int8_ms);
-    if cfg.device_reference_ms != Some(frugal_policies::budget::TX2_LIKE_REFERENCE_MS)
-        && cfg.device_reference_int8_ms == Some(frugal_policies::budget::TX2_LIKE_REFERENCE_INT8_MS)
-    {
-        eprintln!(
-            "warning: {}: device_reference_ms is not the tx2-like profile's but device_reference_int8_ms is ({} ms); state the device's int8 speed too",
-            config.unwrap_or(Path::new("<defaults>")).display(),
-            frugal_policies::budget::TX2_LIKE_REFERENCE_INT8_MS
-        );
+    if cfg.device_reference_ms != Some(frugal_policies::budget::TX2_LIKE_REFERENCE_MS) {
+        for (field, value, tx2, what) in [
+            (
+                "device_reference_int8_ms",
+                cfg.device_reference_int8_ms,
+                frugal_policies::budget::TX2_LIKE_REFERENCE_INT8_MS,
+                "int8",
+            ),
+            (
+                "device_tracker_reference_ms",
+                cfg.device_tracker_reference_ms,
+                frugal_policies::budget::TX2_LIKE_TRACKER_REFERENCE_MS,
+                "tracker",
+            ),
+        ] {
+            if value == Some(tx2) {
+                eprintln!(
+                    "warning: {}: device_reference_ms is not the tx2-like profile's but {field} is ({tx2} ms); state the device's {what} speed too",
+                    config.unwrap_or(Path::new("<defaults>")).display(),
+                );
+            }
+        }
     }
     match (
         cfg.slowdown_int8,
@@ -207,7 +221,33 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
     if train.is_empty() {
         anyhow::bail!("{}: the log has no training videos", log_path.display());
     }
-    let cost = tracker_cost(&on_device, &policy, &train, &frames, eval)?;
+    let timed = tracker_cost(&on_device, &policy, &train, &frames, eval)?;
+    cfg.slowdown_tracker = cfg.device_slowdown_tracker(timed.reference_ms);
+    match (
+        cfg.slowdown_tracker,
+        cfg.device_tracker_reference_ms,
+        timed.reference_ms,
+    ) {
+        (Some(st), Some(d), Some(h)) => println!(
+            "device {}: the reference tracker takes {d:.2} ms there and took {h:.3} ms between the tracker's calls: the tracker's slowdown {st:.3}",
+            cfg.device
+        ),
+        (_, None, _) => println!(
+            "device {}: the tracker scales as fp32 variants (the profile states no tracker speed)",
+            cfg.device
+        ),
+        _ => println!(
+            "device {}: the tracker scales as fp32 variants (no reference tracker timing)",
+            cfg.device
+        ),
+    }
+    let cost = cfg.tracker_on_device(timed);
+    println!(
+        "tracker on the device: pyramid {:.2} ms, track {:.2} ms/object, init {:.2} ms/object",
+        cost.pyramid_ms * cfg.slowdown,
+        cost.track_ms * cfg.slowdown,
+        cost.init_ms * cfg.slowdown
+    );
     let pol = train_budget(&on_device, &frames, cost, &cfg, 0.5)?;
     for p in &pol.policies {
         println!(
@@ -281,6 +321,18 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
     score_all(&log, &root, &frames, &policy, cost, eval, out, heldout)
 }
 
+/// The line that reports the tracker's timed medians (and the reference tracker's).
+pub(crate) fn tracker_medians(cost: &frugal_policies::eval::TrackerCost) -> String {
+    let reference = cost
+        .reference_ms
+        .map(|r| format!(", reference tracker {r:.3} ms"))
+        .unwrap_or_default();
+    format!(
+        "tracker medians: pyramid {:.3} ms, track {:.3} ms/object, init {:.3} ms/object{reference}",
+        cost.pyramid_ms, cost.track_ms, cost.init_ms
+    )
+}
+
 /// The tracker's medians, measured on the `train` videos as `policy eval` does.
 fn tracker_cost(
     log: &ReplayLog,
@@ -298,10 +350,7 @@ fn tracker_cost(
         &[Strategy::StaticTracker],
     )?
     .cost;
-    println!(
-        "tracker medians: pyramid {:.3} ms, track {:.3} ms/object, init {:.3} ms/object",
-        cost.pyramid_ms, cost.track_ms, cost.init_ms
-    );
+    println!("{}", tracker_medians(&cost));
     Ok(cost)
 }
 

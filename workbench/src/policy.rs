@@ -453,11 +453,9 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
             let names: Vec<String> = ds.classes.iter().map(|c| c.name.clone()).collect();
             let per_class = write_per_class(&log, &runs, &cfg, &names, &a.out)?;
             println!(
-                "static variant: {}; tracker medians: pyramid {:.3} ms, track {:.3} ms/object, init {:.3} ms/object",
+                "static variant: {}; {}",
                 report.static_variant,
-                report.tracker_cost.pyramid_ms,
-                report.tracker_cost.track_ms,
-                report.tracker_cost.init_ms
+                crate::budget::tracker_medians(&report.tracker_cost)
             );
             print!("{}", score_table(&report.scores));
             println!(

@@ -23,10 +23,12 @@
 //! for the tracker, the medians measured in the same run (pyramid build per frame,
 //! track and init per object), so the replay's decisions are deterministic.
 
+mod reference;
 mod run;
 mod score;
 
 pub use crate::scoring::{Scenario, TRACK_POINTS, TrackerCost, correct, frame_f1, most_accurate};
+pub use reference::ReferenceTracker;
 pub use score::{ClassScore, Score, class_counts, class_scores, scores};
 
 use crate::error::Result;
@@ -317,6 +319,7 @@ pub fn run_all(
         pyramid_ms: median(&mut timings.pyramid),
         track_ms: median(&mut timings.track),
         init_ms: median(&mut timings.init),
+        reference_ms: (!timings.reference.is_empty()).then(|| median(&mut timings.reference)),
     };
     for (_, rs) in &mut runs {
         for r in rs {

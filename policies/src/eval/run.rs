@@ -11,12 +11,27 @@ use frugal_runtime::{BBox, Bundle, Controller, Decision, Detection, Observation,
 use rand::{Rng, SeedableRng};
 use std::time::Instant;
 
-/// The tracker's measured times, ms, every sample.
+/// The tracker's measured times, ms, every sample, and the reference tracker's,
+/// timed once after every pyramid so that both see the machine in the same state.
 #[derive(Default)]
 pub(super) struct Timings {
     pub(super) pyramid: Vec<f64>,
     pub(super) track: Vec<f64>,
     pub(super) init: Vec<f64>,
+    pub(super) reference: Vec<f64>,
+    reference_tracker: Option<super::reference::ReferenceTracker>,
+}
+
+impl Timings {
+    /// Times the reference tracker once (built on first use).
+    fn time_reference(&mut self) {
+        if self.reference_tracker.is_none() {
+            self.reference_tracker = super::reference::ReferenceTracker::new();
+        }
+        if let Some(ms) = self.reference_tracker.as_mut().and_then(|r| r.time_ms()) {
+            self.reference.push(ms);
+        }
+    }
 }
 
 struct Track {
@@ -109,6 +124,7 @@ fn run_controlled(
                 .and_then(|mut p| p.build(&gray))
                 .map_err(&err)?;
             timings.pyramid.push(t0.elapsed().as_secs_f64() * 1e3);
+            timings.time_reference();
             if have_prev && !tracks.is_empty() {
                 let prev = Pyramid::new(&mut prev_buf, w, h, levels).map_err(&err)?;
                 let cur = Pyramid::new(&mut cur_buf, w, h, levels).map_err(&err)?;

@@ -26,6 +26,7 @@ const COST: TrackerCost = TrackerCost {
     track_ms: 0.2,
     init_ms: 0.1,
     samples: (0, 0, 0),
+    reference_ms: None,
 };
 
 /// One clock run of `strategy` under the fixed tracker costs, boxes matched at IoU 0.5.
@@ -366,12 +367,7 @@ fn a_fifteen_percent_change_of_every_latency_moves_the_budget_policy_little() {
         for (v, f) in moved.variants.iter_mut().zip(factors) {
             v.latency_ms *= f;
         }
-        let cost = TrackerCost {
-            pyramid_ms: COST.pyramid_ms * tracker,
-            track_ms: COST.track_ms * tracker,
-            init_ms: COST.init_ms * tracker,
-            ..COST
-        };
+        let cost = COST.scaled(tracker);
         let (scores, fits) = figures(&moved, cost, &mut policy);
         for (k, &budget) in cfg.budgets_ms.iter().enumerate() {
             let pick = |s: &[frugal_policies::budget_eval::BudgetScore]| {
@@ -1254,6 +1250,78 @@ fn the_bundle_records_the_frame_interval_the_tables_count() {
 /// differ only in how much faster they run int8 (integer dot-product instructions or
 /// not) simulate the same device: the same device latencies, the same tables. With the
 /// fp32 anchor alone, the machine that runs int8 faster sees cheaper int8 variants.
+#[test]
+fn machines_that_differ_in_tracker_speed_simulate_the_same_device() {
+    let (log, frames) = log3();
+    // the tracker timed on a machine `busy` times slower at that moment, the reference
+    // tracker timed between its calls slowed alike, the variants timed another time
+    let on = |busy: f64, anchor: bool| {
+        let mut log = log.clone();
+        log.reference_ms = Some(10.0);
+        let mut cfg = BudgetConfig {
+            device_reference_ms: Some(30.0),
+            device_tracker_reference_ms: anchor.then_some(2.4),
+            ..config()
+        };
+        cfg.check(std::path::Path::new("budget.toml")).unwrap();
+        cfg.slowdown = cfg.device_slowdown(log.reference_ms);
+        let timed = TrackerCost {
+            reference_ms: Some(0.8),
+            ..COST
+        }
+        .scaled(busy);
+        cfg.slowdown_tracker = cfg.device_slowdown_tracker(timed.reference_ms);
+        let cost = cfg.tracker_on_device(timed);
+        (cost, train_budget(&log, &frames, cost, &cfg, 0.5).unwrap())
+    };
+    let ((ca, a), (cb, b)) = (on(1.0, true), on(1.5, true));
+    let st = b.config.slowdown_tracker.expect("the tracker's slowdown");
+    assert!((st - 2.4 / 1.2).abs() < 1e-12, "{st}");
+    // on the device: 0.3 ms × 2.4 / 0.8, whatever the machine's state; the reference
+    // put there takes the profile's time
+    for c in [ca, cb] {
+        let device = |ms: f64| ms * a.config.slowdown;
+        assert!((device(c.pyramid_ms) - 0.9).abs() < 1e-9, "{c:?}");
+        assert!((device(c.track_ms) - 0.6).abs() < 1e-9, "{c:?}");
+        assert!(
+            (device(c.reference_ms.unwrap()) - 2.4).abs() < 1e-9,
+            "{c:?}"
+        );
+    }
+    for (pa, pb) in a.policies.iter().zip(&b.policies) {
+        assert_eq!(pa.actions, pb.actions, "budget {} ms", pa.budget_ms);
+        assert!(
+            (pa.expected_ms - pb.expected_ms).abs() < 1e-9,
+            "budget {} ms",
+            pa.budget_ms
+        );
+    }
+    // without the tracker's anchor the busy moment is the device's: its tracker costs
+    // 1.5 times more, and the tables expect more time per frame
+    let ((cn, n), (cs, s)) = (on(1.0, false), on(1.5, false));
+    assert_eq!(s.config.slowdown_tracker, None);
+    assert!((cs.pyramid_ms - 1.5 * cn.pyramid_ms).abs() < 1e-12);
+    assert!(
+        n.policies
+            .iter()
+            .zip(&s.policies)
+            .any(|(pn, ps)| ps.expected_ms > pn.expected_ms),
+        "{:?} {:?}",
+        n.policies.iter().map(|p| p.expected_ms).collect::<Vec<_>>(),
+        s.policies.iter().map(|p| p.expected_ms).collect::<Vec<_>>()
+    );
+    // a tracker speed must be a positive time
+    let bad = BudgetConfig {
+        device_tracker_reference_ms: Some(0.0),
+        ..BudgetConfig::default()
+    };
+    let e = bad
+        .check(std::path::Path::new("budget.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("device_tracker_reference_ms"), "{e}");
+}
+
 #[test]
 fn machines_that_differ_in_int8_speed_simulate_the_same_device() {
     use frugal_policies::variants::Precision;

@@ -75,6 +75,13 @@ fn strategies_run_and_the_oracle_is_never_slower_or_worse_than_static() {
     let stt = all(Strategy::StaticTracker);
     assert!(stt.detections * 3 < stt.frames, "{stt:?}");
     assert!(runs.cost.samples.1 > 0 && runs.cost.track_ms > 0.0);
+    // the reference tracker was timed between the tracker's calls (one tracked
+    // 480×270 frame: more work than one 48-point track)
+    let r = runs
+        .cost
+        .reference_ms
+        .expect("the reference tracker's median");
+    assert!(r > runs.cost.track_ms, "{:?}", runs.cost);
 }
 
 #[test]
