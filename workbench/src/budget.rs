@@ -192,25 +192,21 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
             }
         }
     }
-    match (
-        cfg.slowdown_int8,
-        cfg.device_reference_int8_ms,
-        log.reference_int8_ms,
-    ) {
-        (Some(s8), Some(d), Some(h)) => println!(
-            "device {}: the int8 reference detector takes {d:.1} ms there and took {h:.2} ms on the machine that timed the variants: int8 variants' slowdown {s8:.3}",
-            cfg.device
-        ),
-        (_, None, _) => println!(
-            "device {}: int8 variants scale as fp32 ones (the profile states no int8 speed)",
-            cfg.device
-        ),
-        _ => println!(
-            "device {}: int8 variants scale as fp32 ones ({} records no int8 reference timing)",
-            cfg.device,
-            log_path.display()
-        ),
-    }
+    print_anchor(
+        &cfg.device,
+        [
+            cfg.slowdown_int8,
+            cfg.device_reference_int8_ms,
+            log.reference_int8_ms,
+        ],
+        [
+            "int8 reference detector",
+            "on the machine that timed the variants",
+            "int8 variants",
+            "int8",
+        ],
+        &format!("{} records no int8 reference timing", log_path.display()),
+    );
     // the log with every variant's latency on the device's anchor (the one scored
     // below is put there by `score_log`)
     let mut on_device = log.clone();
@@ -223,24 +219,21 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
     }
     let timed = tracker_cost(&on_device, &policy, &train, &frames, eval)?;
     cfg.slowdown_tracker = cfg.device_slowdown_tracker(timed.reference_ms);
-    match (
-        cfg.slowdown_tracker,
-        cfg.device_tracker_reference_ms,
-        timed.reference_ms,
-    ) {
-        (Some(st), Some(d), Some(h)) => println!(
-            "device {}: the reference tracker takes {d:.2} ms there and took {h:.3} ms between the tracker's calls: the tracker's slowdown {st:.3}",
-            cfg.device
-        ),
-        (_, None, _) => println!(
-            "device {}: the tracker scales as fp32 variants (the profile states no tracker speed)",
-            cfg.device
-        ),
-        _ => println!(
-            "device {}: the tracker scales as fp32 variants (no reference tracker timing)",
-            cfg.device
-        ),
-    }
+    print_anchor(
+        &cfg.device,
+        [
+            cfg.slowdown_tracker,
+            cfg.device_tracker_reference_ms,
+            timed.reference_ms,
+        ],
+        [
+            "reference tracker",
+            "between the tracker's calls",
+            "the tracker",
+            "tracker",
+        ],
+        "no reference tracker timing",
+    );
     let cost = cfg.tracker_on_device(timed);
     println!(
         "tracker on the device: pyramid {:.2} ms, track {:.2} ms/object, init {:.2} ms/object",
@@ -319,6 +312,22 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
     std::fs::create_dir_all(out)?;
     policy.save(&out.join("policy.json"))?;
     score_all(&log, &root, &frames, &policy, cost, eval, out, heldout)
+}
+
+/// Reports one of the device's anchors: `[slowdown, device_ms, host_ms]` as the
+/// budget stage drew them; `[the reference, where it was timed, what scales by it,
+/// what speed the profile states]`; why there is no host time.
+fn print_anchor(device: &str, [s, d, h]: [Option<f64>; 3], names: [&str; 4], untimed: &str) {
+    let [reference, timed, scaled, speed] = names;
+    match (s, d, h) {
+        (Some(s), Some(d), Some(h)) => println!(
+            "device {device}: the {reference} takes {d:.2} ms there and took {h:.3} ms {timed}: slowdown {s:.3} for {scaled}"
+        ),
+        (_, None, _) => println!(
+            "device {device}: {scaled} on the fp32 anchor (the profile states no {speed} speed)"
+        ),
+        _ => println!("device {device}: {scaled} on the fp32 anchor ({untimed})"),
+    }
 }
 
 /// The line that reports the tracker's timed medians (and the reference tracker's).
