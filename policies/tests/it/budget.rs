@@ -1246,10 +1246,10 @@ fn the_bundle_records_the_frame_interval_the_tables_count() {
     assert!((old.schedule_spec().frame_ms - 1e3 / 30.0).abs() < 1e-4);
 }
 
-/// A device profile states its int8 speed as well as its fp32 one, so two machines that
-/// differ only in how much faster they run int8 (integer dot-product instructions or
-/// not) simulate the same device: the same device latencies, the same tables. With the
-/// fp32 anchor alone, the machine that runs int8 faster sees cheaper int8 variants.
+/// A device profile states its tracker speed (the reference tracker's time), so a
+/// machine busier while it timed the tracker (the reference timed between the
+/// tracker's calls slowed alike) simulates the same device: the same tracker costs
+/// there, the same tables. With the fp32 anchor alone the busy moment is the device's.
 #[test]
 fn machines_that_differ_in_tracker_speed_simulate_the_same_device() {
     let (log, frames) = log3();
@@ -1322,6 +1322,10 @@ fn machines_that_differ_in_tracker_speed_simulate_the_same_device() {
     assert!(e.contains("device_tracker_reference_ms"), "{e}");
 }
 
+/// A device profile states its int8 speed as well as its fp32 one, so two machines that
+/// differ only in how much faster they run int8 (integer dot-product instructions or
+/// not) simulate the same device: the same device latencies, the same tables. With the
+/// fp32 anchor alone, the machine that runs int8 faster sees cheaper int8 variants.
 #[test]
 fn machines_that_differ_in_int8_speed_simulate_the_same_device() {
     use frugal_policies::variants::Precision;
