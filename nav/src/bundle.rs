@@ -41,6 +41,11 @@ pub struct Percept {
     /// another speed relative to the measuring machine than fp32 charges this part by
     /// its int8 slowdown.
     pub int8_ms: f64,
+    /// Of `compute_ms`, the time outside the detectors: the tracker (pyramids, tracks)
+    /// and the decision (0 for a detector alone). A device profile with a tracker speed
+    /// of its own charges this part by its tracker slowdown, as the budget stage puts
+    /// the tracker's costs on the device by the reference tracker.
+    pub tracker_ms: f64,
 }
 
 /// An error from a perception implementation (boxed so any detector's error fits).
@@ -104,13 +109,45 @@ pub const FP32: &str = "fp32";
 /// int8 speed of its own.
 pub const NO_PRECISION: &str = "the bundle does not mark its variants' precision (`precision:<variant>` metadata, written by `frugal bundle write` since 2026-12-05), so its int8 variants cannot be charged by the device's int8 slowdown: write the bundle again, or fly without an int8 slowdown";
 
-/// Device ms for `compute_ms` measured on a machine that stands in for the device,
-/// `int8_ms` of it in int8 detectors: the int8 part × `slowdown_int8`, the rest ×
-/// `slowdown` (negative times count as 0, and the int8 part at most the whole).
-pub fn device_ms(compute_ms: f64, int8_ms: f64, slowdown: f64, slowdown_int8: f64) -> f64 {
-    let compute_ms = compute_ms.max(0.0);
-    let int8_ms = int8_ms.clamp(0.0, compute_ms);
-    (compute_ms - int8_ms) * slowdown + int8_ms * slowdown_int8
+/// The slowdowns of a device over the machine that stands in for it: fp32 detectors
+/// (and whatever is not told apart), int8 detectors, the tracker.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Slowdowns {
+    /// Device time over measured time for fp32 detectors.
+    pub fp32: f64,
+    /// The same for int8 detectors.
+    pub int8: f64,
+    /// The same for the time outside the detectors ([`Percept::tracker_ms`]).
+    pub tracker: f64,
+}
+
+impl Slowdowns {
+    /// One slowdown for everything.
+    pub fn uniform(slowdown: f64) -> Self {
+        Self {
+            fp32: slowdown,
+            int8: slowdown,
+            tracker: slowdown,
+        }
+    }
+
+    /// Device ms for `compute_ms` measured, `int8_ms` of it in int8 detectors and
+    /// `tracker_ms` outside the detectors: each part × its slowdown, the rest × the
+    /// fp32 one (negative times count as 0; the int8 part is at most the whole, the
+    /// tracker's at most what the int8 part leaves).
+    pub fn device_ms(&self, compute_ms: f64, int8_ms: f64, tracker_ms: f64) -> f64 {
+        let compute_ms = compute_ms.max(0.0);
+        let int8_ms = int8_ms.clamp(0.0, compute_ms);
+        let tracker_ms = tracker_ms.clamp(0.0, compute_ms - int8_ms);
+        (compute_ms - int8_ms - tracker_ms) * self.fp32
+            + int8_ms * self.int8
+            + tracker_ms * self.tracker
+    }
+
+    /// Device ms for what `percept` reports it spent.
+    pub fn percept_ms(&self, percept: &Percept) -> f64 {
+        self.device_ms(percept.compute_ms, percept.int8_ms, percept.tracker_ms)
+    }
 }
 
 /// Per variant of `bundle`, in bundle order: whether its metadata marks it int8;
@@ -224,11 +261,8 @@ pub struct BundlePerception {
     /// The budget table flown ([`BundlePerception::with_budget`]), in device ms.
     budget_ms: Option<f32>,
     /// Device ms per measured ms, what the budget keeper is debited
-    /// ([`BundlePerception::with_debit_scale`]; 1 on the drone).
-    debit_scale: f32,
-    /// The same for the time spent in int8 variants, when it differs
-    /// ([`BundlePerception::with_int8_debit_scale`]).
-    int8_debit_scale: Option<f32>,
+    /// ([`BundlePerception::with_debit`]; 1 on the drone).
+    debit: Slowdowns,
     /// Per variant, whether the bundle marks it int8 ([`int8_variants`]; none marked
     /// when the bundle does not say).
     int8: Vec<bool>,
@@ -280,8 +314,7 @@ impl BundlePerception {
             detected_us: 0,
             last_run: Vec::new(),
             budget_ms: None,
-            debit_scale: 1.0,
-            int8_debit_scale: None,
+            debit: Slowdowns::uniform(1.0),
             int8: int8_variants(&bundle).unwrap_or_default(),
             table_clock: None,
         })
@@ -378,44 +411,56 @@ impl BundlePerception {
         }
     }
 
-    /// Debit the budget keeper `scale` device ms per measured ms, for a machine that
-    /// stands in for the device (the simulator's device profile, whose slowdown scales
-    /// every compute time). On the drone, the measured time is the device's: 1, the
-    /// default. Fails unless `scale` is positive and finite.
-    pub fn with_debit_scale(mut self, scale: f32) -> Result<Self, PerceptionError> {
-        if !(scale > 0.0 && scale.is_finite()) {
-            return Err(format!("the keeper's debit scale must be positive, got {scale}").into());
+    /// Debit the budget keeper device ms per measured ms by `slowdowns`, for a machine
+    /// that stands in for the device (the simulator's device profile): the time in
+    /// the variants the bundle marks int8 ([`int8_variants`]) by `slowdowns.int8`, the
+    /// time outside the detectors ([`Percept::tracker_ms`]) by `slowdowns.tracker`, the
+    /// rest by `slowdowns.fp32`. On the drone, the measured time is the device's: 1
+    /// for all, the default. Fails unless every slowdown is positive and finite, and
+    /// for a bundle that does not mark its variants' precision when the int8 slowdown
+    /// is not the fp32 one ([`NO_PRECISION`]).
+    pub fn with_debit(mut self, slowdowns: Slowdowns) -> Result<Self, PerceptionError> {
+        for (what, s) in [
+            ("", slowdowns.fp32),
+            (" int8", slowdowns.int8),
+            (" tracker", slowdowns.tracker),
+        ] {
+            if !(s > 0.0 && s.is_finite()) {
+                return Err(
+                    format!("the keeper's{what} debit scale must be positive, got {s}").into(),
+                );
+            }
         }
-        self.debit_scale = scale;
+        if slowdowns.int8 != slowdowns.fp32 {
+            int8_variants_or_refuse(&self.bundle)?;
+        }
+        self.debit = slowdowns;
         Ok(self)
     }
 
-    /// Debit the time spent in the variants the bundle marks int8 ([`int8_variants`])
-    /// `scale` device ms per measured ms instead of [`BundlePerception::with_debit_scale`]'s,
-    /// for a simulated device whose int8 speed relative to the measuring machine is not
-    /// its fp32 one. Fails unless `scale` is positive and finite, and for a bundle that
-    /// does not mark its variants' precision.
-    pub fn with_int8_debit_scale(mut self, scale: f32) -> Result<Self, PerceptionError> {
-        int8_variants_or_refuse(&self.bundle)?;
-        if !(scale > 0.0 && scale.is_finite()) {
-            return Err(
-                format!("the keeper's int8 debit scale must be positive, got {scale}").into(),
-            );
-        }
-        self.int8_debit_scale = Some(scale);
-        Ok(self)
+    /// The device ms the keeper is debited for `percept`'s compute.
+    fn debit(&self, percept: &Percept) -> f32 {
+        self.debit.percept_ms(percept) as f32
     }
 
-    /// The device ms the keeper is debited for `compute_ms` measured, `int8_ms` of it
-    /// in int8 variants.
-    fn debit(&self, compute_ms: f64, int8_ms: f64) -> f32 {
-        let scale8 = self.int8_debit_scale.unwrap_or(self.debit_scale);
-        device_ms(
+    /// The time, ms, all variants ran since `us_before` (each variant's µs then).
+    fn detector_ms_since(&self, us_before: &[u64]) -> f64 {
+        let us: u64 = (self.runs_per_variant.iter().zip(us_before))
+            .map(|(r, before)| r.us.saturating_sub(*before))
+            .sum();
+        us as f64 / 1e3
+    }
+
+    /// A frame's compute of `compute_ms`, the variants' runs since `us_before`: the
+    /// percept's times (int8 and outside the detectors) with `detections`.
+    fn timed(&self, detections: Vec<Detection>, compute_ms: f64, us_before: &[u64]) -> Percept {
+        Percept {
+            detections,
             compute_ms,
-            int8_ms,
-            f64::from(self.debit_scale),
-            f64::from(scale8),
-        ) as f32
+            tracked: false,
+            int8_ms: self.int8_ms_since(us_before),
+            tracker_ms: (compute_ms - self.detector_ms_since(us_before)).max(0.0),
+        }
     }
 
     /// The time, ms, the int8 variants ran since `us_before` (each variant's µs then).
@@ -534,9 +579,12 @@ impl BundlePerception {
             .map(|(i, _)| i)
             .collect();
         let elapsed = started.elapsed();
-        let (compute_ms, int8_ms) = (elapsed.as_secs_f64() * 1e3, self.int8_ms_since(&us_before));
+        let percept = Percept {
+            tracked: decision == Decision::Track,
+            ..self.timed(detections, elapsed.as_secs_f64() * 1e3, &us_before)
+        };
         // the budget keeper's debit (a pilot over the controller ignores it)
-        self.pilot.spent(self.debit(compute_ms, int8_ms));
+        self.pilot.spent(self.debit(&percept));
         let us = u64::try_from(elapsed.as_micros()).unwrap_or(u64::MAX);
         if decision == Decision::Track {
             self.tracked_frames += 1;
@@ -544,12 +592,7 @@ impl BundlePerception {
         } else {
             self.detected_us = self.detected_us.saturating_add(us);
         }
-        Ok(Percept {
-            detections,
-            compute_ms,
-            tracked: decision == Decision::Track,
-            int8_ms,
-        })
+        Ok(percept)
     }
 
     /// The bundle's reference variant (the most accurate) on this frame, reporting
@@ -571,15 +614,13 @@ impl BundlePerception {
             frame,
         )?;
         detections.retain(|d| d.score >= t_c);
-        let compute_ms = started.elapsed().as_secs_f64() * 1e3;
-        let int8_ms = self.int8_ms_since(&us_before);
-        self.pilot.spent(self.debit(compute_ms, int8_ms));
-        Ok(Percept {
+        let percept = self.timed(
             detections,
-            compute_ms,
-            tracked: false,
-            int8_ms,
-        })
+            started.elapsed().as_secs_f64() * 1e3,
+            &us_before,
+        );
+        self.pilot.spent(self.debit(&percept));
+        Ok(percept)
     }
 
     /// `frames detected: <trigger>` per controller trigger (the frame's first

@@ -24,7 +24,7 @@ mod sighting;
 
 pub use bundle::{
     BUNDLE_FILE, BundleError, BundlePerception, CNN_REPORT_SCORE, Percept, PerceptionError,
-    verify_files,
+    Slowdowns, verify_files,
 };
 pub use config::{NavConfig, NavDistances};
 pub use flight_log::{DetectionRecord, FlightLog, LogRow};

@@ -148,6 +148,7 @@ impl Replay {
             compute_ms: 0.0,
             tracked: f.is_some_and(|f| f.tracked),
             int8_ms: 0.0,
+            tracker_ms: 0.0,
         }
     }
 

@@ -69,7 +69,8 @@ impl AdaptivePerception {
     /// ([`BundlePerception::with_budget`]), with a budget keeper of `keep_window` frames
     /// (0: none) debited every frame's compute on `device` as the flight charges it
     /// ([`DeviceProfile::device_ms`]: the int8 variants' time by the profile's int8
-    /// slowdown when it states one, which the bundle's `precision:` metadata names).
+    /// slowdown when it states one, which the bundle's `precision:` metadata names, and
+    /// the time outside the variants by its tracker slowdown).
     /// The table's periods and the keeper's credit count frames
     /// on the clock the tables were made on (the bundle's frame interval), by their
     /// capture times, those the camera took while perception was busy included, as on
@@ -88,14 +89,11 @@ impl AdaptivePerception {
             return Err(format!("camera frame rate must be positive, got {camera_fps}").into());
         }
         device.check()?;
-        let mut inner = self
+        let inner = self
             .inner
             .with_budget(budget_ms, keep_window)?
-            .with_debit_scale(device.slowdown as f32)?
+            .with_debit(device.slowdowns())?
             .with_fallback_clock(1e3 / camera_fps)?;
-        if let Some(s8) = device.slowdown_int8 {
-            inner = inner.with_int8_debit_scale(s8 as f32)?;
-        }
         Ok(Self { inner, dropped: 0 })
     }
 

@@ -19,6 +19,7 @@ pub struct FrameInput<'a> {
     pub truth: &'a FrameTruth,
 }
 
+pub use frugal_nav::bundle::Slowdowns;
 pub use frugal_nav::{Percept, PerceptionError};
 
 /// Turns camera frames into sign detections, reporting the compute time it used.
@@ -125,7 +126,7 @@ impl Perception for GroundTruthPerception {
             tracked: false,
             detections,
             compute_ms: self.compute_ms,
-            int8_ms: 0.0,
+            ..Percept::default()
         })
     }
 }
@@ -191,13 +192,15 @@ where
             detections,
             compute_ms,
             int8_ms: if self.int8 { compute_ms } else { 0.0 },
+            tracker_ms: 0.0,
         })
     }
 }
 
 /// How much slower the simulated drone's computer is than the machine that measured
 /// the compute time: simulated seconds per frame = `compute_ms / 1000 × slowdown`, the
-/// part spent in int8 detectors charged by `slowdown_int8` when the profile states one
+/// part spent in int8 detectors charged by `slowdown_int8` and the part outside the
+/// detectors by `slowdown_tracker` when the profile states them
 /// ([`DeviceProfile::device_ms`]).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct DeviceProfile {
@@ -211,6 +214,12 @@ pub struct DeviceProfile {
     /// `slowdown` for everything.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub slowdown_int8: Option<f64>,
+    /// Multiplier on the compute time outside the detectors ([`Percept::tracker_ms`]:
+    /// the tracker and the decision), when the device's speed on that work relative to
+    /// the measuring machine is not its fp32 detectors' (the budget stage states it by
+    /// the reference tracker); `None`: `slowdown`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slowdown_tracker: Option<f64>,
 }
 
 impl DeviceProfile {
@@ -220,6 +229,7 @@ impl DeviceProfile {
             name: "host".into(),
             slowdown: 1.0,
             slowdown_int8: None,
+            slowdown_tracker: None,
         }
     }
 
@@ -231,6 +241,7 @@ impl DeviceProfile {
             name: "tx2-like".into(),
             slowdown: 6.0,
             slowdown_int8: None,
+            slowdown_tracker: None,
         }
     }
 
@@ -243,14 +254,18 @@ impl DeviceProfile {
         }
     }
 
-    /// Device ms for `compute_ms` measured, `int8_ms` of it in int8 detectors.
-    pub fn device_ms(&self, compute_ms: f64, int8_ms: f64) -> f64 {
-        frugal_nav::bundle::device_ms(
-            compute_ms,
-            int8_ms,
-            self.slowdown,
-            self.slowdown_int8.unwrap_or(self.slowdown),
-        )
+    /// Its slowdowns, part by part (those it does not state: `slowdown`).
+    pub fn slowdowns(&self) -> Slowdowns {
+        Slowdowns {
+            fp32: self.slowdown,
+            int8: self.slowdown_int8.unwrap_or(self.slowdown),
+            tracker: self.slowdown_tracker.unwrap_or(self.slowdown),
+        }
+    }
+
+    /// Device ms for what `percept` reports it spent ([`Slowdowns::percept_ms`]).
+    pub fn device_ms(&self, percept: &Percept) -> f64 {
+        self.slowdowns().percept_ms(percept)
     }
 
     /// Fails unless the slowdowns are positive and finite.
@@ -262,10 +277,15 @@ impl DeviceProfile {
                 self.slowdown
             ));
         }
-        match self.slowdown_int8 {
-            Some(s) if !ok(s) => Err(format!("device int8 slowdown must be positive, got {s}")),
-            _ => Ok(()),
+        for (what, s) in [
+            ("int8", self.slowdown_int8),
+            ("tracker", self.slowdown_tracker),
+        ] {
+            if let Some(s) = s.filter(|&s| !ok(s)) {
+                return Err(format!("device {what} slowdown must be positive, got {s}"));
+            }
         }
+        Ok(())
     }
 }
 

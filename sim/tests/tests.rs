@@ -794,13 +794,20 @@ fn a_missing_turn_sign_ends_in_a_collision() {
 }
 
 /// The part of a frame's compute spent in int8 detectors is charged by the device's
-/// int8 slowdown, the rest by its slowdown: a flight whose every millisecond is int8
-/// flies on a (6, int8 3) device exactly as on a device of slowdown 3, and one without
-/// int8 time exactly as on a device of slowdown 6.
+/// int8 slowdown, the part outside the detectors (tracker, decision) by its tracker
+/// slowdown, the rest by its slowdown: a flight whose every millisecond is int8 flies
+/// on a (6, int8 3) device exactly as on a device of slowdown 3, one without int8 time
+/// exactly as on a device of slowdown 6, and the same for the tracker's part.
 #[test]
-fn int8_compute_is_charged_by_the_devices_int8_slowdown() {
+fn each_part_of_the_compute_is_charged_by_its_slowdown() {
     let maze = corridor("sign stop 4 1 e 1.2");
-    let fly_on = |slowdown: f64, slowdown_int8: Option<f64>, int8_share: f64| {
+    // a flight whose perception spends `int8_share` of its 10 ms in int8 detectors and
+    // `tracker_share` outside the detectors, on a device of those slowdowns
+    let fly_on = |slowdown: f64,
+                  slowdown_int8: Option<f64>,
+                  slowdown_tracker: Option<f64>,
+                  int8_share: f64,
+                  tracker_share: f64| {
         let mut gt = GroundTruthPerception {
             compute_ms: 10.0,
             ..GroundTruthPerception::default()
@@ -809,6 +816,7 @@ fn int8_compute_is_charged_by_the_devices_int8_slowdown() {
             let p = frugal_sim::Perception::perceive(&mut gt, input)?;
             Ok(Percept {
                 int8_ms: p.compute_ms * int8_share,
+                tracker_ms: p.compute_ms * tracker_share,
                 ..p
             })
         };
@@ -817,45 +825,73 @@ fn int8_compute_is_charged_by_the_devices_int8_slowdown() {
                 name: "test".into(),
                 slowdown,
                 slowdown_int8,
+                slowdown_tracker,
             },
             ..fast_config()
         };
         let r = frugal_sim::fly(&maze, &config, &mut perception, 1, None).unwrap();
-        // the result reports the int8 part of the mean compute
-        assert!(
-            (r.int8_ms_mean - r.compute_ms_mean * int8_share).abs() < 1e-9,
-            "{} of {} ms at share {int8_share}",
-            r.int8_ms_mean,
-            r.compute_ms_mean
-        );
+        // the result reports the int8 and the tracker parts of the mean compute
+        for (part, share) in [
+            (r.int8_ms_mean, int8_share),
+            (r.tracker_ms_mean, tracker_share),
+        ] {
+            assert!(
+                (part - r.compute_ms_mean * share).abs() < 1e-9,
+                "{part} of {} ms at share {share}",
+                r.compute_ms_mean
+            );
+        }
         (r.frames, r.time_s, r.outcome)
     };
-    let all_int8 = fly_on(6.0, Some(3.0), 1.0);
-    assert_eq!(all_int8, fly_on(3.0, None, 1.0));
-    assert_eq!(all_int8, fly_on(3.0, None, 0.0));
-    let no_int8 = fly_on(6.0, Some(3.0), 0.0);
-    assert_eq!(no_int8, fly_on(6.0, None, 0.0));
-    assert_eq!(no_int8, fly_on(6.0, None, 1.0));
+    let all_int8 = fly_on(6.0, Some(3.0), None, 1.0, 0.0);
+    assert_eq!(all_int8, fly_on(3.0, None, None, 1.0, 0.0));
+    assert_eq!(all_int8, fly_on(3.0, None, None, 0.0, 0.0));
+    let no_int8 = fly_on(6.0, Some(3.0), None, 0.0, 0.0);
+    assert_eq!(no_int8, fly_on(6.0, None, None, 0.0, 0.0));
+    assert_eq!(no_int8, fly_on(6.0, None, None, 1.0, 0.0));
     // 60 device ms a frame against 30: fewer frames over the same corridor
     assert!(no_int8.0 < all_int8.0, "{no_int8:?} against {all_int8:?}");
     // half and half lies between
-    let half = fly_on(6.0, Some(3.0), 0.5);
+    let half = fly_on(6.0, Some(3.0), None, 0.5, 0.0);
     assert!(no_int8.0 < half.0 && half.0 < all_int8.0, "{half:?}");
-
-    let bad = FlightConfig {
-        device: DeviceProfile {
-            name: "test".into(),
-            slowdown: 6.0,
-            slowdown_int8: Some(f64::NAN),
-        },
-        ..fast_config()
-    };
-    let mut gt = GroundTruthPerception::default();
-    let e = frugal_sim::fly(&maze, &bad, &mut gt, 1, None).unwrap_err();
+    // the tracker's part by the tracker's slowdown: all of it at 3 flies as fp32 at 3,
+    // none of it as fp32 at 6; a frame half int8 (at 3) and half tracker (at 3) too
+    let all_tracker = fly_on(6.0, None, Some(3.0), 0.0, 1.0);
+    assert_eq!(all_tracker, all_int8);
+    assert_eq!(fly_on(6.0, None, Some(3.0), 0.0, 0.0), no_int8);
+    assert_eq!(fly_on(6.0, Some(3.0), Some(3.0), 0.5, 0.5), all_int8);
+    // a tracker share the int8 part leaves no room for counts as nothing: all int8
+    assert_eq!(fly_on(6.0, Some(3.0), Some(12.0), 1.0, 0.5), all_int8);
+    // without a tracker slowdown the tracker's part is fp32's
+    assert_eq!(fly_on(6.0, None, None, 0.0, 1.0), no_int8);
+    let quarter = fly_on(6.0, None, Some(3.0), 0.0, 0.25);
     assert!(
-        e.to_string().contains("int8 slowdown must be positive"),
-        "{e}"
+        no_int8.0 < quarter.0 && quarter.0 < all_tracker.0,
+        "{quarter:?}"
     );
+
+    for (slowdown_int8, slowdown_tracker, what) in [
+        (Some(f64::NAN), None, "int8 slowdown must be positive"),
+        (None, Some(0.0), "tracker slowdown must be positive"),
+        (
+            None,
+            Some(f64::INFINITY),
+            "tracker slowdown must be positive",
+        ),
+    ] {
+        let bad = FlightConfig {
+            device: DeviceProfile {
+                name: "test".into(),
+                slowdown: 6.0,
+                slowdown_int8,
+                slowdown_tracker,
+            },
+            ..fast_config()
+        };
+        let mut gt = GroundTruthPerception::default();
+        let e = frugal_sim::fly(&maze, &bad, &mut gt, 1, None).unwrap_err();
+        assert!(e.to_string().contains(what), "{e}");
+    }
 }
 
 #[test]
@@ -868,8 +904,7 @@ fn perception_errors_name_the_frame() {
             Ok(Percept {
                 detections: Vec::new(),
                 compute_ms: 10.0,
-                tracked: false,
-                int8_ms: 0.0,
+                ..Percept::default()
             })
         }
     };

@@ -238,11 +238,11 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
     // controller's trigger (the first frame by `Start`), confirmations, and runs per
     // variant, which cover every detection and confirmation
     let flight = &json(&run.join("flights/adaptive/easy/flights.json"))[0];
-    // both sides fly the budget stage's device, int8 speed included
+    // both sides fly the budget stage's device, int8 and tracker speeds included
     let device = &json(&run.join("budget/policy.json"))["budget"]["config"];
     for side in ["static", "adaptive"] {
         let f = &json(&run.join(format!("flights/{side}/easy/flights.json")))[0];
-        for key in ["slowdown", "slowdown_int8"] {
+        for key in ["slowdown", "slowdown_int8", "slowdown_tracker"] {
             let (a, b) = (f["device"][key].as_f64(), device[key].as_f64());
             assert!(
                 a.is_some() && a == b,
@@ -298,6 +298,16 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
     } else {
         assert_eq!(in_int8, Some(0.0), "{name}: {st}");
     }
+    // a static detector spends nothing outside it; the adaptive runtime tracks (and
+    // builds pyramids) between its detections, so part of its compute is the tracker's
+    assert_eq!(st["tracker_ms_mean"].as_f64(), Some(0.0), "{st}");
+    let in_tracker = flight["tracker_ms_mean"].as_f64().expect("tracker_ms_mean");
+    assert!(
+        in_tracker > 0.0
+            && in_tracker + flight["int8_ms_mean"].as_f64().unwrap()
+                <= flight["compute_ms_mean"].as_f64().unwrap() + 1e-9,
+        "{flight}"
+    );
     let counts: BTreeMap<String, u64> = flight["perception_counts"]
         .as_array()
         .expect("perception_counts")

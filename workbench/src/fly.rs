@@ -77,6 +77,12 @@ pub struct FlyArgs {
     /// does.
     #[arg(long)]
     pub slowdown_int8: Option<f64>,
+    /// The device's slowdown for the compute outside the detectors (the adaptive
+    /// runtime's tracker and decisions), when it differs from the fp32 one (`frugal
+    /// run` passes the budget stage's: the device profile's reference tracker over this
+    /// machine's, timed with the tracker's costs).
+    #[arg(long)]
+    pub slowdown_tracker: Option<f64>,
     /// Camera width, pixels.
     #[arg(long, default_value_t = 480)]
     pub width: u32,
@@ -186,22 +192,23 @@ pub fn run(args: FlyArgs) -> anyhow::Result<()> {
             args.device
         )
     })?;
+    // each stated slowdown replaces the profile's, and the tables and files name the
+    // device by its label: say what it now is
+    let positive = |flag: &str, s: f64| -> anyhow::Result<f64> {
+        anyhow::ensure!(s > 0.0 && s.is_finite(), "{flag} must be positive, got {s}");
+        Ok(s)
+    };
     if let Some(s) = args.slowdown {
-        anyhow::ensure!(
-            s > 0.0 && s.is_finite(),
-            "--slowdown must be positive, got {s}"
-        );
-        device.slowdown = s;
-        // the tables and files name the device by its label: say what it now is
+        device.slowdown = positive("--slowdown", s)?;
         device.name = format!("{} at slowdown {s}", device.name);
     }
     if let Some(s) = args.slowdown_int8 {
-        anyhow::ensure!(
-            s > 0.0 && s.is_finite(),
-            "--slowdown-int8 must be positive, got {s}"
-        );
-        device.slowdown_int8 = Some(s);
+        device.slowdown_int8 = Some(positive("--slowdown-int8", s)?);
         device.name = format!("{} (int8 {s})", device.name);
+    }
+    if let Some(s) = args.slowdown_tracker {
+        device.slowdown_tracker = Some(positive("--slowdown-tracker", s)?);
+        device.name = format!("{} (tracker {s})", device.name);
     }
     anyhow::ensure!(args.seeds >= 1, "--seeds must be at least 1");
     anyhow::ensure!(

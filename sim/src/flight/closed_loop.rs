@@ -74,7 +74,8 @@ pub fn fly(
     }];
     let mut events = Vec::new();
     let mut frames = 0u64;
-    let (mut compute_total, mut render_total, mut int8_total) = (0.0, 0.0, 0.0);
+    let (mut compute_total, mut render_total) = (0.0, 0.0);
+    let (mut int8_total, mut tracker_total) = (0.0, 0.0);
     let (mut sign_frames, mut sign_hits, mut false_detections) = (0u64, 0u64, 0u64);
     let mut confirmation_reads = Vec::new();
     // device time of confirmations, charged to the next interval, s
@@ -119,6 +120,7 @@ pub fn fly(
             })?;
         compute_total += percept.compute_ms;
         int8_total += percept.int8_ms;
+        tracker_total += percept.tracker_ms;
         score(
             &truth,
             &percept.detections,
@@ -126,8 +128,7 @@ pub fn fly(
             &mut sign_hits,
             &mut false_detections,
         );
-        let dt = config.device.device_ms(percept.compute_ms, percept.int8_ms) / 1e3
-            + std::mem::take(&mut pending_s);
+        let dt = config.device.device_ms(&percept) / 1e3 + std::mem::take(&mut pending_s);
         let dt = dt.max(min_dt);
         // the camera frames perception drops before the next one it takes
         let dt = dt + perception.camera_wait_s(t + dt, min_dt);
@@ -209,9 +210,10 @@ pub fn fly(
             &input_nav,
             || match perception.confirm(&input) {
                 Ok(Some(check)) => {
-                    pending_s += config.device.device_ms(check.compute_ms, check.int8_ms) / 1e3;
+                    pending_s += config.device.device_ms(&check) / 1e3;
                     compute_total += check.compute_ms.max(0.0);
                     int8_total += check.int8_ms.max(0.0);
+                    tracker_total += check.tracker_ms.max(0.0);
                     confirm_read = Some(Some(check.detections.clone()));
                     Ok(Some(check.detections))
                 }
@@ -304,6 +306,7 @@ pub fn fly(
         avg_velocity: if t > 0.0 { odo / t } else { 0.0 },
         compute_ms_mean: compute_total / n,
         int8_ms_mean: int8_total / n,
+        tracker_ms_mean: tracker_total / n,
         render_ms_mean: render_total / n,
         wait_s,
         sign_frames,

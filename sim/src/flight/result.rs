@@ -111,6 +111,11 @@ pub struct FlightResult {
     /// part charged by the device's int8 slowdown when it states one.
     #[serde(default)]
     pub int8_ms_mean: f64,
+    /// Of it, the mean time outside the detectors ([`crate::Percept::tracker_ms`]:
+    /// tracker and decision), ms: the part charged by the device's tracker slowdown
+    /// when it states one.
+    #[serde(default)]
+    pub tracker_ms_mean: f64,
     /// Mean wall-clock render time per frame on this machine, ms.
     pub render_ms_mean: f64,
     /// Simulated seconds spent hovering at WAIT signs or for pedestrians.

@@ -74,7 +74,7 @@ pub(crate) const STAGES: [StageDef; 10] = [
     },
     StageDef {
         name: "flights",
-        deps: &["bundle", "evaluation", "pareto"],
+        deps: &["bundle", "budget", "evaluation", "pareto"],
         what: "closed-loop maze flights, static detector against the adaptive runtime (when the classes are the synthetic signs)",
     },
 ];
@@ -756,6 +756,14 @@ impl Ctx {
             .device_slowdown_int8(file.reference_int8_ms)
             .filter(|_| slowdown.is_some())
             .map(|s| s.to_string());
+        // and the tracker's speed, by the reference tracker the budget stage timed
+        // with the tracker's costs
+        let budget_policy = self.dir("budget").join("policy.json");
+        let slowdown_tracker = frugal_policies::TrainedPolicy::load(&budget_policy)?
+            .budget
+            .and_then(|b| b.config.slowdown_tracker)
+            .filter(|_| slowdown.is_some())
+            .map(|s| s.to_string());
         let common = |perception: &str| {
             let mut a: Vec<String> = vec!["fly".into()];
             for m in &f.mazes {
@@ -784,8 +792,13 @@ impl Ctx {
             if let Some(s) = &slowdown {
                 a.extend(["--slowdown".into(), s.clone()]);
             }
-            if let Some(s) = &slowdown_int8 {
-                a.extend(["--slowdown-int8".into(), s.clone()]);
+            for (flag, value) in [
+                ("--slowdown-int8", &slowdown_int8),
+                ("--slowdown-tracker", &slowdown_tracker),
+            ] {
+                if let Some(s) = value {
+                    a.extend([flag.into(), s.clone()]);
+                }
             }
             a
         };
