@@ -148,7 +148,15 @@ pub fn normalize(frame: FrameRef<'_>, mean: [f32; 3], std: [f32; 3]) -> Vec<f32>
 }
 
 /// Resize an RGB8 frame to `w × h` with bilinear interpolation (pixel centres aligned,
-/// as `align_corners = false`). An empty frame or target gives black pixels.
+/// as `align_corners = false`). An empty frame or target gives black pixels; pixels a
+/// short buffer lacks read as black.
+///
+/// Per output value: `top = p00 + (p10 − p00)·tx`, `bot = p01 + (p11 − p01)·tx`,
+/// `top + (bot − top)·ty`, rounded half away from zero. The column taps are computed
+/// once per image and the two source rows are sliced once per output row, so the inner
+/// loop indexes plain slices; the rounding adds ½ and truncates (the value is never
+/// negative beyond float error, and the cast saturates), which equals `round` then
+/// clamping to 0..=255 without a library call per value.
 pub fn resize_bilinear(frame: FrameRef<'_>, w: u32, h: u32) -> Vec<u8> {
     let (sw, sh) = (frame.width as usize, frame.height as usize);
     let (dw, dh) = (w as usize, h as usize);
@@ -163,17 +171,51 @@ pub fn resize_bilinear(frame: FrameRef<'_>, w: u32, h: u32) -> Vec<u8> {
         let i1 = (i0 + 1).min(n - 1);
         (i0, i1, s - i0 as f32)
     };
-    let xs: Vec<_> = (0..dw).map(|x| axis(x, fx, sw)).collect();
-    let px = |x: usize, y: usize, c: usize| {
-        f32::from(frame.rgb.get((y * sw + x) * 3 + c).copied().unwrap_or(0))
-    };
-    for (y, row) in out.chunks_exact_mut(dw * 3).enumerate() {
+    // byte offsets of the two taps within a row, and the weight
+    let xs: Vec<(usize, usize, f32)> = (0..dw)
+        .map(|x| {
+            let (x0, x1, tx) = axis(x, fx, sw);
+            (x0 * 3, x1 * 3, tx)
+        })
+        .collect();
+    let row_bytes = sw * 3;
+    let row = |y: usize| frame.rgb.get(y * row_bytes..(y + 1) * row_bytes);
+    let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
+    let to_u8 = |v: f32| (v + 0.5) as u8;
+    for (y, dst_row) in out.chunks_exact_mut(dw * 3).enumerate() {
         let (y0, y1, ty) = axis(y, fy, sh);
-        for (&(x0, x1, tx), dst) in xs.iter().zip(row.chunks_exact_mut(3)) {
-            for (c, v) in dst.iter_mut().enumerate() {
-                let top = px(x0, y0, c) + (px(x1, y0, c) - px(x0, y0, c)) * tx;
-                let bot = px(x0, y1, c) + (px(x1, y1, c) - px(x0, y1, c)) * tx;
-                *v = (top + (bot - top) * ty).round().clamp(0.0, 255.0) as u8;
+        match (row(y0), row(y1)) {
+            (Some(r0), Some(r1)) => {
+                for (&(a, b, tx), dst) in xs.iter().zip(dst_row.chunks_exact_mut(3)) {
+                    // always there: x0, x1 < sw, so a + 3, b + 3 ≤ row_bytes
+                    let taps = (r0.get(a..a + 3), r0.get(b..b + 3));
+                    let (Some(p00), Some(p10)) = taps else {
+                        continue;
+                    };
+                    let taps = (r1.get(a..a + 3), r1.get(b..b + 3));
+                    let (Some(p01), Some(p11)) = taps else {
+                        continue;
+                    };
+                    let px = p00.iter().zip(p10).zip(p01.iter().zip(p11));
+                    for (v, ((&q00, &q10), (&q01, &q11))) in dst.iter_mut().zip(px) {
+                        let top = lerp(f32::from(q00), f32::from(q10), tx);
+                        let bot = lerp(f32::from(q01), f32::from(q11), tx);
+                        *v = to_u8(lerp(top, bot, ty));
+                    }
+                }
+            }
+            // a buffer shorter than its size says: what it lacks reads as black
+            _ => {
+                let px = |i: usize, r: usize, c: usize| {
+                    f32::from(frame.rgb.get(r * row_bytes + i + c).copied().unwrap_or(0))
+                };
+                for (&(a, b, tx), dst) in xs.iter().zip(dst_row.chunks_exact_mut(3)) {
+                    for (c, v) in dst.iter_mut().enumerate() {
+                        let top = lerp(px(a, y0, c), px(b, y0, c), tx);
+                        let bot = lerp(px(a, y1, c), px(b, y1, c), tx);
+                        *v = to_u8(lerp(top, bot, ty));
+                    }
+                }
             }
         }
     }
@@ -338,6 +380,111 @@ pub fn detections(
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
+
+    /// The resize as first written, one checked pixel read and a library `round` per
+    /// value: what the faster one must equal byte for byte.
+    #[allow(clippy::indexing_slicing)]
+    fn resize_reference(frame: FrameRef<'_>, w: u32, h: u32) -> Vec<u8> {
+        let (sw, sh) = (frame.width as usize, frame.height as usize);
+        let (dw, dh) = (w as usize, h as usize);
+        let mut out = std::vec![0u8; dw * dh * 3];
+        if sw == 0 || sh == 0 || dw == 0 || dh == 0 {
+            return out;
+        }
+        let (fx, fy) = (sw as f32 / dw as f32, sh as f32 / dh as f32);
+        let axis = |d: usize, f: f32, n: usize| {
+            let s = ((d as f32 + 0.5) * f - 0.5).max(0.0);
+            let i0 = (s as usize).min(n - 1);
+            let i1 = (i0 + 1).min(n - 1);
+            (i0, i1, s - i0 as f32)
+        };
+        let px = |x: usize, y: usize, c: usize| {
+            f32::from(frame.rgb.get((y * sw + x) * 3 + c).copied().unwrap_or(0))
+        };
+        for y in 0..dh {
+            let (y0, y1, ty) = axis(y, fy, sh);
+            for x in 0..dw {
+                let (x0, x1, tx) = axis(x, fx, sw);
+                for c in 0..3 {
+                    let top = px(x0, y0, c) + (px(x1, y0, c) - px(x0, y0, c)) * tx;
+                    let bot = px(x0, y1, c) + (px(x1, y1, c) - px(x0, y1, c)) * tx;
+                    out[(y * dw + x) * 3 + c] =
+                        (top + (bot - top) * ty).round().clamp(0.0, 255.0) as u8;
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    #[allow(clippy::indexing_slicing)]
+    fn the_resize_equals_the_per_pixel_reference_byte_for_byte() {
+        let mut seed = 0x9e37_79b9_u32;
+        let mut noise = |n: usize| -> Vec<u8> {
+            (0..n)
+                .map(|_| {
+                    seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                    (seed >> 24) as u8
+                })
+                .collect()
+        };
+        // down (the variants' 0.75 and 0.5 inputs, footage to the detector's size), up,
+        // odd sizes, one pixel, and flat extremes
+        let cases: [((u32, u32), (u32, u32)); 8] = [
+            ((480, 270), (360, 203)),
+            ((480, 270), (240, 135)),
+            ((640, 480), (480, 270)),
+            ((37, 23), (64, 41)),
+            ((1, 1), (5, 3)),
+            ((3, 2), (1, 1)),
+            ((7, 5), (7, 5)),
+            ((101, 3), (13, 17)),
+        ];
+        let mut compared = 0usize;
+        for ((sw, sh), (dw, dh)) in cases {
+            let n = (sw * sh * 3) as usize;
+            for px in [noise(n), std::vec![0u8; n], std::vec![255u8; n]] {
+                let frame = FrameRef::new(sw, sh, &px).unwrap();
+                let fast = resize_bilinear(frame, dw, dh);
+                assert_eq!(
+                    fast,
+                    resize_reference(frame, dw, dh),
+                    "{sw}×{sh} → {dw}×{dh}"
+                );
+                compared += fast.len();
+            }
+            // a buffer shorter than its size: no panic, the missing pixels black
+            let short = noise(n / 2);
+            let frame = FrameRef {
+                width: sw,
+                height: sh,
+                rgb: &short,
+            };
+            assert_eq!(
+                resize_bilinear(frame, dw, dh),
+                resize_reference(frame, dw, dh)
+            );
+        }
+        assert!(compared > 400_000, "{compared}");
+        // the extremes: flat frames stay flat
+        let white = std::vec![255u8; 480 * 270 * 3];
+        let up = resize_bilinear(FrameRef::new(480, 270, &white).unwrap(), 360, 203);
+        assert!(up.iter().all(|&v| v == 255));
+        // nothing to read or nothing to write
+        assert_eq!(
+            resize_bilinear(
+                FrameRef {
+                    width: 0,
+                    height: 4,
+                    rgb: &[]
+                },
+                2,
+                2
+            ),
+            [0; 12]
+        );
+        assert!(resize_bilinear(FrameRef::new(2, 2, &[9; 12]).unwrap(), 0, 3).is_empty());
+    }
 
     #[test]
     fn malformed_outputs_give_fewer_boxes_not_panics() {
