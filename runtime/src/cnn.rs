@@ -147,6 +147,16 @@ pub fn normalize(frame: FrameRef<'_>, mean: [f32; 3], std: [f32; 3]) -> Vec<f32>
     out
 }
 
+/// The two source indices and the weight of the second for output index `d` of an
+/// axis resized by `scale` (source length over output length) from `n > 0` samples,
+/// pixel centres aligned (`align_corners = false`).
+fn bilinear_taps(d: usize, scale: f32, n: usize) -> (usize, usize, f32) {
+    let s = ((d as f32 + 0.5) * scale - 0.5).max(0.0);
+    let i0 = (s as usize).min(n.saturating_sub(1));
+    let i1 = (i0 + 1).min(n.saturating_sub(1));
+    (i0, i1, s - i0 as f32)
+}
+
 /// Resize an RGB8 frame to `w × h` with bilinear interpolation (pixel centres aligned,
 /// as `align_corners = false`). An empty frame or target gives black pixels; pixels a
 /// short buffer lacks read as black.
@@ -165,16 +175,10 @@ pub fn resize_bilinear(frame: FrameRef<'_>, w: u32, h: u32) -> Vec<u8> {
         return out;
     }
     let (fx, fy) = (sw as f32 / dw as f32, sh as f32 / dh as f32);
-    let axis = |d: usize, f: f32, n: usize| {
-        let s = ((d as f32 + 0.5) * f - 0.5).max(0.0);
-        let i0 = (s as usize).min(n - 1);
-        let i1 = (i0 + 1).min(n - 1);
-        (i0, i1, s - i0 as f32)
-    };
     // byte offsets of the two taps within a row, and the weight
     let xs: Vec<(usize, usize, f32)> = (0..dw)
         .map(|x| {
-            let (x0, x1, tx) = axis(x, fx, sw);
+            let (x0, x1, tx) = bilinear_taps(x, fx, sw);
             (x0 * 3, x1 * 3, tx)
         })
         .collect();
@@ -183,7 +187,7 @@ pub fn resize_bilinear(frame: FrameRef<'_>, w: u32, h: u32) -> Vec<u8> {
     let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
     let to_u8 = |v: f32| (v + 0.5) as u8;
     for (y, dst_row) in out.chunks_exact_mut(dw * 3).enumerate() {
-        let (y0, y1, ty) = axis(y, fy, sh);
+        let (y0, y1, ty) = bilinear_taps(y, fy, sh);
         match (row(y0), row(y1)) {
             (Some(r0), Some(r1)) => {
                 for (&(a, b, tx), dst) in xs.iter().zip(dst_row.chunks_exact_mut(3)) {
@@ -381,8 +385,9 @@ pub fn detections(
 mod tests {
     use super::*;
 
-    /// The resize as first written, one checked pixel read and a library `round` per
-    /// value: what the faster one must equal byte for byte.
+    /// The resize as first written (its taps as the faster one takes them), one checked
+    /// pixel read and a library `round` per value: what the faster one must equal byte
+    /// for byte.
     #[allow(clippy::indexing_slicing)]
     fn resize_reference(frame: FrameRef<'_>, w: u32, h: u32) -> Vec<u8> {
         let (sw, sh) = (frame.width as usize, frame.height as usize);
@@ -392,19 +397,13 @@ mod tests {
             return out;
         }
         let (fx, fy) = (sw as f32 / dw as f32, sh as f32 / dh as f32);
-        let axis = |d: usize, f: f32, n: usize| {
-            let s = ((d as f32 + 0.5) * f - 0.5).max(0.0);
-            let i0 = (s as usize).min(n - 1);
-            let i1 = (i0 + 1).min(n - 1);
-            (i0, i1, s - i0 as f32)
-        };
         let px = |x: usize, y: usize, c: usize| {
             f32::from(frame.rgb.get((y * sw + x) * 3 + c).copied().unwrap_or(0))
         };
         for y in 0..dh {
-            let (y0, y1, ty) = axis(y, fy, sh);
+            let (y0, y1, ty) = bilinear_taps(y, fy, sh);
             for x in 0..dw {
-                let (x0, x1, tx) = axis(x, fx, sw);
+                let (x0, x1, tx) = bilinear_taps(x, fx, sw);
                 for c in 0..3 {
                     let top = px(x0, y0, c) + (px(x1, y0, c) - px(x0, y0, c)) * tx;
                     let bot = px(x0, y1, c) + (px(x1, y1, c) - px(x0, y1, c)) * tx;
