@@ -159,7 +159,7 @@ fn bilinear_taps(d: usize, scale: f32, n: usize) -> (usize, usize, f32) {
 
 /// Resize an RGB8 frame to `w × h` with bilinear interpolation (pixel centres aligned,
 /// as `align_corners = false`). An empty frame or target gives black pixels; pixels a
-/// short buffer lacks read as black.
+/// short buffer lacks read as black (it is padded with them first).
 ///
 /// Per output value: `top = p00 + (p10 − p00)·tx`, `bot = p01 + (p11 − p01)·tx`,
 /// `top + (bot − top)·ty`, rounded half away from zero. The column taps are computed
@@ -183,43 +183,43 @@ pub fn resize_bilinear(frame: FrameRef<'_>, w: u32, h: u32) -> Vec<u8> {
         })
         .collect();
     let row_bytes = sw * 3;
-    let row = |y: usize| frame.rgb.get(y * row_bytes..(y + 1) * row_bytes);
+    // a buffer shorter than its size says: what it lacks reads as black
+    let padded: Vec<u8>;
+    let rgb = if frame.rgb.len() >= row_bytes * sh {
+        frame.rgb
+    } else {
+        padded = frame
+            .rgb
+            .iter()
+            .copied()
+            .chain(core::iter::repeat(0))
+            .take(row_bytes * sh)
+            .collect();
+        &padded
+    };
+    let row = |y: usize| rgb.get(y * row_bytes..(y + 1) * row_bytes);
     let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
     let to_u8 = |v: f32| (v + 0.5) as u8;
     for (y, dst_row) in out.chunks_exact_mut(dw * 3).enumerate() {
         let (y0, y1, ty) = bilinear_taps(y, fy, sh);
-        match (row(y0), row(y1)) {
-            (Some(r0), Some(r1)) => {
-                for (&(a, b, tx), dst) in xs.iter().zip(dst_row.chunks_exact_mut(3)) {
-                    // always there: x0, x1 < sw, so a + 3, b + 3 ≤ row_bytes
-                    let taps = (r0.get(a..a + 3), r0.get(b..b + 3));
-                    let (Some(p00), Some(p10)) = taps else {
-                        continue;
-                    };
-                    let taps = (r1.get(a..a + 3), r1.get(b..b + 3));
-                    let (Some(p01), Some(p11)) = taps else {
-                        continue;
-                    };
-                    let px = p00.iter().zip(p10).zip(p01.iter().zip(p11));
-                    for (v, ((&q00, &q10), (&q01, &q11))) in dst.iter_mut().zip(px) {
-                        let top = lerp(f32::from(q00), f32::from(q10), tx);
-                        let bot = lerp(f32::from(q01), f32::from(q11), tx);
-                        *v = to_u8(lerp(top, bot, ty));
-                    }
-                }
-            }
-            // a buffer shorter than its size says: what it lacks reads as black
-            _ => {
-                let px = |i: usize, r: usize, c: usize| {
-                    f32::from(frame.rgb.get(r * row_bytes + i + c).copied().unwrap_or(0))
-                };
-                for (&(a, b, tx), dst) in xs.iter().zip(dst_row.chunks_exact_mut(3)) {
-                    for (c, v) in dst.iter_mut().enumerate() {
-                        let top = lerp(px(a, y0, c), px(b, y0, c), tx);
-                        let bot = lerp(px(a, y1, c), px(b, y1, c), tx);
-                        *v = to_u8(lerp(top, bot, ty));
-                    }
-                }
+        // always there: y0, y1 < sh, x0, x1 < sw and the buffer is whole
+        let (Some(r0), Some(r1)) = (row(y0), row(y1)) else {
+            continue;
+        };
+        for (&(a, b, tx), dst) in xs.iter().zip(dst_row.chunks_exact_mut(3)) {
+            let taps = (r0.get(a..a + 3), r0.get(b..b + 3));
+            let (Some(p00), Some(p10)) = taps else {
+                continue;
+            };
+            let taps = (r1.get(a..a + 3), r1.get(b..b + 3));
+            let (Some(p01), Some(p11)) = taps else {
+                continue;
+            };
+            let px = p00.iter().zip(p10).zip(p01.iter().zip(p11));
+            for (v, ((&q00, &q10), (&q01, &q11))) in dst.iter_mut().zip(px) {
+                let top = lerp(f32::from(q00), f32::from(q10), tx);
+                let bot = lerp(f32::from(q01), f32::from(q11), tx);
+                *v = to_u8(lerp(top, bot, ty));
             }
         }
     }
