@@ -10,6 +10,12 @@
 //! standard error comes from a bootstrap over the validation videos
 //! ([`BOOTSTRAP_RESAMPLES`] resamples, seed [`BOOTSTRAP_SEED`]).
 //!
+//! Given a device ([`DeviceSpeed`]: how long its reference detectors take, fp32 and
+//! int8), the fronts are drawn on the device's latencies: each variant's cost (and
+//! noise) scaled by the slowdown of its precision, the device's reference over this
+//! machine's (timed in the same rotation). A machine whose int8 runs relatively faster
+//! or slower than the device's then draws the device's front, not its own.
+//!
 //! Over 600 lines with its unit tests (the last 210); the measuring pass itself is one
 //! loop that must stay interleaved.
 use crate::files::{write_atomic, write_json};
@@ -97,6 +103,13 @@ pub struct VariantResult {
     pub latency: Latency,
     /// Latency differences up to this are noise ([`Latency::noise_ms`]).
     pub latency_noise_ms: f64,
+    /// Quantized to int8 (scaled by the device's int8 slowdown).
+    pub int8: bool,
+    /// Cost on the device (`latency`'s fastest run × the slowdown of its precision),
+    /// when a device was given: what the fronts are drawn on.
+    pub device_ms: Option<f64>,
+    /// `latency_noise_ms` on the device, the same way.
+    pub device_noise_ms: Option<f64>,
     /// Per scenario `"<clutter>-clutter/<light>-light"`: top-score distribution.
     pub confidence: BTreeMap<String, ConfidenceHistogram>,
     /// On the noise-aware front of each metric (`map`, `f1`, `iou`).
@@ -123,6 +136,55 @@ struct Timings<'a> {
     reference_ms: &'a [f64],
     reference_int8_ms: &'a [f64],
     variants: BTreeMap<&'a str, &'a [f64]>,
+}
+
+/// The device the fronts are drawn for: how long its reference detectors take, ms
+/// (fp32 and int8; the tx2-like profile's are in the budget config).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct DeviceSpeed {
+    /// The reference detector's time on the device.
+    pub reference_ms: f64,
+    /// The int8 reference detector's time on the device.
+    pub reference_int8_ms: f64,
+}
+
+/// The device's slowdowns over this machine, fp32 and int8, from the reference
+/// detectors' costs here; an error naming the bad time when one is not a positive,
+/// finite number.
+fn slowdowns(
+    device: DeviceSpeed,
+    reference: &Latency,
+    reference_int8: &Latency,
+) -> Result<[f64; 2], ParetoError> {
+    let pairs = [
+        ("reference", device.reference_ms, reference.cost_ms()),
+        (
+            "int8 reference",
+            device.reference_int8_ms,
+            reference_int8.cost_ms(),
+        ),
+    ];
+    let mut out = [0.0; 2];
+    for (o, (what, on_device, here)) in out.iter_mut().zip(pairs) {
+        let ok = |ms: f64| ms.is_finite() && ms > 0.0;
+        if !ok(on_device) || !ok(here) {
+            return Err(ParetoError::Input(format!(
+                "the {what} detector's time must be a positive number of ms (device {on_device}, measured here {here})"
+            )));
+        }
+        *o = on_device / here;
+    }
+    Ok(out)
+}
+
+/// Puts every variant on the device of `slowdowns` (fp32, int8): its cost and noise
+/// scaled by its precision's slowdown (`None`: off any device).
+fn put_on_device(out: &mut [VariantResult], slowdowns: Option<[f64; 2]>) {
+    for r in out {
+        let scale = slowdowns.map(|[fp32, int8]| if r.int8 { int8 } else { fp32 });
+        r.device_ms = scale.map(|k| r.latency.cost_ms() * k);
+        r.device_noise_ms = scale.map(|k| r.latency_noise_ms * k);
+    }
 }
 
 /// What `frugal pareto` is asked to do.
@@ -152,6 +214,8 @@ pub struct ParetoOptions {
     pub docs_png: Option<PathBuf>,
     /// Print progress.
     pub progress: bool,
+    /// Draw the fronts on this device's latencies (`None`: on this machine's).
+    pub device: Option<DeviceSpeed>,
 }
 
 /// The whole report (`pareto.json`).
@@ -179,6 +243,10 @@ pub struct ParetoReport {
     /// ([`frugal_models::onnx::export_reference_int8`]), timed with them too: what a
     /// device profile scales the int8 variants from.
     pub reference_int8: Latency,
+    /// The device the fronts were drawn for, if any.
+    pub device: Option<DeviceSpeed>,
+    /// Its slowdowns over this machine, fp32 and int8 (with `device`).
+    pub slowdowns: Option<[f64; 2]>,
     /// Every variant.
     pub variants: Vec<VariantResult>,
     /// Per metric: names on the noise-aware front, fastest first (`variants.json`
@@ -243,8 +311,8 @@ fn mark_fronts(
         .map(|r| NoisyPoint {
             accuracy: get(r),
             accuracy_se: get_se(r),
-            latency: r.latency.cost_ms(),
-            latency_noise: r.latency_noise_ms,
+            latency: r.device_ms.unwrap_or(r.latency.cost_ms()),
+            latency_noise: r.device_noise_ms.unwrap_or(r.latency_noise_ms),
         })
         .collect();
     let points: Vec<Point> = noisy
@@ -406,6 +474,10 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
         .ok_or_else(|| ParetoError::Input("no timings of the reference detector".into()))?;
     let reference_int8 = Latency::from_samples(&reference_int8_ms)
         .ok_or_else(|| ParetoError::Input("no timings of the int8 reference detector".into()))?;
+    let slowdowns = opts
+        .device
+        .map(|d| slowdowns(d, &reference, &reference_int8))
+        .transpose()?;
     // 2. the other frames, accuracy only, split over the workers
     let parts: Vec<Vec<(usize, FrameOutcome)>> = std::thread::scope(|sc| {
         let mut own = Some(&mut dets);
@@ -522,6 +594,9 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
             recall: s.recall,
             latency,
             latency_noise_ms: latency.noise_ms(),
+            int8: r.int8,
+            device_ms: None,
+            device_noise_ms: None,
             confidence: tops[i]
                 .iter()
                 .map(|(k, v)| (k.clone(), histogram(v)))
@@ -532,6 +607,7 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
             merged_into: BTreeMap::new(),
         });
     }
+    put_on_device(&mut out, slowdowns);
     std::fs::create_dir_all(&opts.out).map_err(|e| ParetoError::io(&opts.out, e))?;
     let (mut fronts, mut plain_fronts) = (BTreeMap::new(), BTreeMap::new());
     let metrics: [Metric; 3] = [
@@ -539,10 +615,15 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
         ("f1", "F1", |r| r.f1, |r| r.f1_se),
         ("iou", "mean IoU", |r| r.mean_iou, |r| r.mean_iou_se),
     ];
-    let lat_label = format!(
-        "latency per frame, fastest of the timed runs, ms (ONNX Runtime, {} thread(s))",
-        opts.threads
-    );
+    let lat_label = match slowdowns {
+        None => format!(
+            "latency per frame, fastest of the timed runs, ms (ONNX Runtime, {} thread(s))",
+            opts.threads
+        ),
+        Some([fp32, int8]) => format!(
+            "latency per frame on the device, ms (fastest run here × {fp32:.2} fp32, × {int8:.2} int8)"
+        ),
+    };
     for (key, label, get, get_se) in metrics {
         let (f, plain) = mark_fronts(&mut out, key, get, get_se);
         let labelled: Vec<(String, Point)> = out
@@ -550,7 +631,7 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
             .map(|r| {
                 let p = Point {
                     accuracy: get(r),
-                    latency: r.latency.cost_ms(),
+                    latency: r.device_ms.unwrap_or(r.latency.cost_ms()),
                 };
                 (r.name.clone(), p)
             })
@@ -588,6 +669,8 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
         threads: opts.threads,
         reference,
         reference_int8,
+        device: opts.device,
+        slowdowns,
         variants: out,
         fronts,
         plain_fronts,
@@ -635,12 +718,12 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
 /// The table as CSV (one row per variant).
 pub fn csv(r: &ParetoReport) -> String {
     let mut s = String::from(
-        "name,parent,technique,input,parameters,nonzero_parameters,file_bytes,map,f1,mean_iou,map_se,f1_se,mean_iou_se,precision,recall,latency_ms,latency_median_ms,latency_p90_ms,latency_spread_ms,latency_noise_ms,front_map,front_f1,front_iou,plain_front_map,dominated_by_map,merged_into_map\n",
+        "name,parent,technique,input,parameters,nonzero_parameters,file_bytes,map,f1,mean_iou,map_se,f1_se,mean_iou_se,precision,recall,latency_ms,latency_median_ms,latency_p90_ms,latency_spread_ms,latency_noise_ms,front_map,front_f1,front_iou,plain_front_map,dominated_by_map,merged_into_map,int8,device_ms\n",
     );
     for v in &r.variants {
         let tech = v.technique.to_string().replace(',', ";").replace('"', "");
         s += &format!(
-            "{},{},{},{},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.3},{:.3},{:.3},{:.3},{:.3},{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.3},{:.3},{:.3},{:.3},{:.3},{},{},{},{},{},{},{},{}\n",
             v.name,
             v.parent.clone().unwrap_or_default(),
             tech,
@@ -667,6 +750,8 @@ pub fn csv(r: &ParetoReport) -> String {
             v.on_plain_front["map"],
             v.dominated_by["map"].join(" "),
             v.merged_into["map"].as_deref().unwrap_or_default(),
+            v.int8,
+            v.device_ms.map(|ms| format!("{ms:.3}")).unwrap_or_default(),
         );
     }
     s
@@ -720,6 +805,18 @@ pub fn table(r: &ParetoReport) -> String {
         "reference detector, int8 (the same, quantized as the int8 variants): {:.2} ms fastest, {:.2} median, {:.2} p90\n",
         r.reference_int8.cost_ms(), r.reference_int8.median_ms, r.reference_int8.p90_ms
     ));
+    if let (Some(d), Some([fp32, int8])) = (r.device, r.slowdowns) {
+        s.push_str(&format!(
+            "fronts drawn on the device (references {:.1} / {:.1} ms, fp32 / int8): slowdowns {fp32:.2} / {int8:.2}; device ms: {}\n",
+            d.reference_ms,
+            d.reference_int8_ms,
+            r.variants
+                .iter()
+                .filter_map(|v| Some(format!("{} {:.1}", v.name, v.device_ms?)))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
     s
 }
 
@@ -823,12 +920,80 @@ mod tests {
             recall: 0.9,
             latency,
             latency_noise_ms: latency.noise_ms(),
+            int8: name.ends_with("int8"),
+            device_ms: None,
+            device_noise_ms: None,
             confidence: BTreeMap::new(),
             on_front: BTreeMap::new(),
             on_plain_front: BTreeMap::new(),
             dominated_by: BTreeMap::new(),
             merged_into: BTreeMap::new(),
         }
+    }
+
+    /// The map front of `out` (names, fastest first) after putting it on the device of
+    /// `slowdowns`.
+    fn map_front(out: &mut [VariantResult], slowdowns: Option<[f64; 2]>) -> Vec<String> {
+        put_on_device(out, slowdowns);
+        let (f, _) = mark_fronts(out, "map", |r| r.map, |r| r.map_se);
+        f.iter().map(|&i| out[i].name.clone()).collect()
+    }
+
+    #[test]
+    fn machines_that_differ_in_int8_speed_draw_the_same_device_front() {
+        let device = DeviceSpeed {
+            reference_ms: 194.4,
+            reference_int8_ms: 140.1,
+        };
+        // a machine whose int8 runs against its fp32 as the device's does, and one
+        // whose int8 is no faster than its fp32 (AVX2 without 8-bit dot products)
+        let (xeon, avx2) = ([24.75, 17.835], [32.0, 32.0]);
+        let variants = |[fp32_ref, int8_ref]: [f64; 2]| {
+            let (fp32, int8) = (fp32_ref / 24.75, int8_ref / 17.835);
+            vec![
+                variant("ch50-p10", 4.0 * fp32, 0.951, 0.003),
+                variant("ch50-p10-int8", 3.0 * int8, 0.940, 0.003),
+                variant("ch75-p20-int8", 6.0 * int8, 0.970, 0.003),
+            ]
+        };
+        let on = |refs: [f64; 2]| {
+            let reference = Latency::from_samples(&[refs[0]]).unwrap();
+            let reference_int8 = Latency::from_samples(&[refs[1]]).unwrap();
+            slowdowns(device, &reference, &reference_int8).unwrap()
+        };
+        let everything = ["ch50-p10-int8", "ch50-p10", "ch75-p20-int8"];
+        // on their own latencies the two machines draw different fronts: on the
+        // second the int8 variant is slower than its fp32 parent and less accurate
+        assert_eq!(map_front(&mut variants(xeon), None), everything);
+        assert_eq!(
+            map_front(&mut variants(avx2), None),
+            ["ch50-p10", "ch75-p20-int8"]
+        );
+        // on the device both draw the device's, at the same device costs
+        let (mut a, mut b) = (variants(xeon), variants(avx2));
+        assert_eq!(map_front(&mut a, Some(on(xeon))), everything);
+        assert_eq!(map_front(&mut b, Some(on(avx2))), everything);
+        for (x, y) in a.iter().zip(&b) {
+            let (dx, dy) = (x.device_ms.unwrap(), y.device_ms.unwrap());
+            assert!((dx - dy).abs() < 1e-9 * dx, "{}: {dx} {dy}", x.name);
+            let k = dx / x.latency.cost_ms();
+            assert!((x.device_noise_ms.unwrap() - k * x.latency_noise_ms).abs() < 1e-9);
+        }
+        // the device is the tx2-like one: 4.0 ms of fp32 here is 4.0 × 194.4 / 24.75
+        let fp32 = a.iter().find(|v| v.name == "ch50-p10").unwrap();
+        let expected = fp32.latency.cost_ms() * 194.4 / 24.75;
+        assert!((fp32.device_ms.unwrap() - expected).abs() < 1e-9);
+        // a time that is not a positive number is refused, naming the detector
+        let zero = Latency::from_samples(&[0.0]).unwrap();
+        let ok = Latency::from_samples(&[20.0]).unwrap();
+        let e = slowdowns(device, &ok, &zero).unwrap_err().to_string();
+        assert!(e.contains("int8 reference"), "{e}");
+        let nan = DeviceSpeed {
+            reference_ms: f64::NAN,
+            ..device
+        };
+        let e = slowdowns(nan, &ok, &ok).unwrap_err().to_string();
+        assert!(e.contains("the reference detector"), "{e}");
     }
 
     #[test]
@@ -864,6 +1029,8 @@ mod tests {
             threads: 1,
             reference: Latency::from_samples(&[32.0, 33.0]).unwrap(),
             reference_int8: Latency::from_samples(&[20.0, 21.0]).unwrap(),
+            device: None,
+            slowdowns: None,
             variants: out,
             fronts,
             plain_fronts,

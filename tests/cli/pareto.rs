@@ -268,5 +268,89 @@ fn compress_then_pareto_on_a_tiny_model() {
         for key in ["map", "f1", "mean_iou", "precision", "recall", "confidence"] {
             assert_eq!(a[key], b[key], "{} {key}", a["name"]);
         }
+        // without a device the fronts are drawn on this machine's latencies
+        assert!(b["device_ms"].is_null(), "{}", b["name"]);
     }
+    assert!(r1["device"].is_null() && r1["slowdowns"].is_null());
+
+    // on a device: every variant's cost scaled by its precision's slowdown, the
+    // device's reference over this machine's, and the front drawn on those costs
+    let e = frugal(&[
+        "pareto",
+        "--variants",
+        p(&vars),
+        "--data",
+        p(&data),
+        "--out",
+        p(&out1),
+        "--device-reference-ms",
+        "194.4",
+    ])
+    .unwrap_err();
+    assert!(e.contains("--device-reference-int8-ms"), "{e}");
+    let out2 = tmp.path().join("pareto-device");
+    frugal(&[
+        "pareto",
+        "--variants",
+        p(&vars),
+        "--data",
+        p(&data),
+        "--out",
+        p(&out2),
+        "--frames",
+        "4",
+        "--timed-frames",
+        "1",
+        "--warmup",
+        "1",
+        "--quiet",
+        "--device-reference-ms",
+        "194.4",
+        "--device-reference-int8-ms",
+        "140.1",
+    ])
+    .unwrap();
+    let r2 = json(&out2.join("pareto.json"));
+    let ms = |v: &serde_json::Value| v.as_f64().unwrap();
+    let fp32 = 194.4 / ms(&r2["reference"]["min_ms"]);
+    let int8 = 140.1 / ms(&r2["reference_int8"]["min_ms"]);
+    assert!((ms(&r2["slowdowns"][0]) - fp32).abs() < 1e-9 * fp32);
+    assert!((ms(&r2["slowdowns"][1]) - int8).abs() < 1e-9 * int8);
+    assert_eq!(r2["device"]["reference_int8_ms"], 140.1);
+    let vs2 = r2["variants"].as_array().unwrap();
+    for v in vs2 {
+        let is_int8 = rec(v["name"].as_str().unwrap())["int8"].as_bool().unwrap();
+        assert_eq!(v["int8"], is_int8);
+        let k = if is_int8 { int8 } else { fp32 };
+        let want = ms(&v["latency"]["min_ms"]) * k;
+        assert!(
+            (ms(&v["device_ms"]) - want).abs() < 1e-9 * want,
+            "{}",
+            v["name"]
+        );
+        let noise = ms(&v["latency_noise_ms"]) * k;
+        assert!((ms(&v["device_noise_ms"]) - noise).abs() < 1e-9 * noise);
+    }
+    // the map front, fastest first on the device, is what the variants file lists
+    let front: Vec<&str> = r2["fronts"]["map"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n.as_str().unwrap())
+        .collect();
+    let device_ms = |n: &str| ms(&vs2.iter().find(|v| v["name"] == n).unwrap()["device_ms"]);
+    assert!(
+        front.windows(2).all(|w| device_ms(w[0]) <= device_ms(w[1])),
+        "{front:?}"
+    );
+    let vf2 = json(&out2.join("variants.json"));
+    let listed: Vec<&str> = vf2["variants"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(listed, front);
+    let csv = std::fs::read_to_string(out2.join("pareto.csv")).unwrap();
+    assert!(csv.lines().next().unwrap().ends_with(",int8,device_ms"));
 }

@@ -250,6 +250,16 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
             );
         }
     }
+    // the Pareto stage drew its fronts on the same device: the slowdowns it scaled the
+    // variants by are the budget stage's, fp32 and int8
+    let pareto = json(&run.join("pareto/pareto.json"));
+    for (i, key) in ["slowdown", "slowdown_int8"].into_iter().enumerate() {
+        let (a, b) = (pareto["slowdowns"][i].as_f64(), device[key].as_f64());
+        assert!(
+            matches!((a, b), (Some(a), Some(b)) if (a - b).abs() < 1e-9 * b),
+            "the Pareto stage's {key} {a:?}, the budget stage's {b:?}"
+        );
+    }
     // the tracker is on the device by its own anchor: the reference tracker, timed
     // between its calls and put on the device with them, takes the profile's time
     let budget = &json(&run.join("budget/policy.json"))["budget"];

@@ -1,7 +1,7 @@
 //! `frugal pareto`: accuracy and latency of every compressed variant, the Pareto
 //! front, plots, and the variants file for `frugal policy record`.
 use clap::Args;
-use frugal_pareto::measure::{ParetoOptions, run as measure_all, table};
+use frugal_pareto::measure::{DeviceSpeed, ParetoOptions, run as measure_all, table};
 use std::path::PathBuf;
 
 /// Arguments of `frugal pareto`.
@@ -38,6 +38,14 @@ pub struct ParetoArgs {
     /// No progress lines.
     #[arg(long)]
     pub quiet: bool,
+    /// Draw the fronts on a device where the reference detector (fp32) takes this
+    /// many ms (tx2-like: 194.4), each variant scaled by its precision's slowdown;
+    /// with `--device-reference-int8-ms`. Without them, on this machine's latencies.
+    #[arg(long, requires = "device_reference_int8_ms")]
+    pub device_reference_ms: Option<f64>,
+    /// The device's int8 reference detector time, ms (tx2-like: 140.1).
+    #[arg(long, requires = "device_reference_ms")]
+    pub device_reference_int8_ms: Option<f64>,
 }
 
 /// Run `frugal pareto`.
@@ -56,6 +64,13 @@ pub fn run(args: ParetoArgs) -> anyhow::Result<()> {
         score_threshold: args.threshold,
         docs_png: args.docs_png.clone(),
         progress: !args.quiet,
+        device: args
+            .device_reference_ms
+            .zip(args.device_reference_int8_ms)
+            .map(|(reference_ms, reference_int8_ms)| DeviceSpeed {
+                reference_ms,
+                reference_int8_ms,
+            }),
     })?;
     print!("{}", table(&report));
     for (metric, names) in &report.fronts {

@@ -202,7 +202,7 @@ impl Ctx {
             },
             "detector" => json!({ "config": c.detector, "device": self.device }),
             "variants" => serde_json::to_value(&c.compress)?,
-            "pareto" => serde_json::to_value(&c.pareto)?,
+            "pareto" => json!({ "config": c.pareto, "device": self.pareto_device() }),
             "replay" => serde_json::to_value(&c.replay)?,
             "policy" => serde_json::to_value(&c.policy)?,
             "evaluation" => serde_json::to_value(&c.evaluation)?,
@@ -221,6 +221,14 @@ impl Ctx {
             "flights" => serde_json::to_value(&c.flights)?,
             other => bail!("no stage named {other}"),
         })
+    }
+
+    /// The device the Pareto fronts are drawn for: the budget stage's, when its profile
+    /// states both reference detectors' times (fp32, int8), so that the variants
+    /// handed on are the device's front rather than this machine's.
+    fn pareto_device(&self) -> Option<[f64; 2]> {
+        let b = &self.config.budget;
+        Some([b.device_reference_ms?, b.device_reference_int8_ms?])
     }
 
     /// The file a stage's command reads its config from, written now.
@@ -441,25 +449,41 @@ impl Ctx {
                 s("--config"),
                 cfg(),
             ]))?],
-            "pareto" => vec![self.frugal(&self.quiet(vec![
-                s("pareto"),
-                s("--variants"),
-                arg(&self.dir("variants")),
-                s("--data"),
-                arg(&self.dir("data").join("dataset")),
-                s("--out"),
-                arg(out),
-                s("--threads"),
-                c.pareto.threads.to_string(),
-                s("--frames"),
-                c.pareto.frames.to_string(),
-                s("--timed-frames"),
-                c.pareto.timed_frames.to_string(),
-                s("--warmup"),
-                c.pareto.warmup.to_string(),
-                s("--threshold"),
-                c.pareto.threshold.to_string(),
-            ]))?],
+            "pareto" => vec![
+                self.frugal(
+                    &self.quiet(
+                        vec![
+                            s("pareto"),
+                            s("--variants"),
+                            arg(&self.dir("variants")),
+                            s("--data"),
+                            arg(&self.dir("data").join("dataset")),
+                            s("--out"),
+                            arg(out),
+                            s("--threads"),
+                            c.pareto.threads.to_string(),
+                            s("--frames"),
+                            c.pareto.frames.to_string(),
+                            s("--timed-frames"),
+                            c.pareto.timed_frames.to_string(),
+                            s("--warmup"),
+                            c.pareto.warmup.to_string(),
+                            s("--threshold"),
+                            c.pareto.threshold.to_string(),
+                        ]
+                        .into_iter()
+                        .chain(self.pareto_device().into_iter().flat_map(|[fp32, int8]| {
+                            [
+                                s("--device-reference-ms"),
+                                fp32.to_string(),
+                                s("--device-reference-int8-ms"),
+                                int8.to_string(),
+                            ]
+                        }))
+                        .collect(),
+                    ),
+                )?,
+            ],
             "replay" => {
                 let r = &c.replay;
                 let log = arg(&out.join("replay.json"));
