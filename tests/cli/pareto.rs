@@ -156,9 +156,9 @@ fn compress_then_pareto_on_a_tiny_model() {
     );
     assert_eq!(rec("base-int8")["calibration"]["method"], "min_max");
 
-    // four validation frames, one warm-up; `timed` of them timed
-    let pareto = |out: &std::path::Path, timed: &str| {
-        frugal(&[
+    // four validation frames, one warm-up; `timed` of them timed; `more` flags
+    let pareto = |out: &std::path::Path, timed: &str, more: &[&str]| {
+        let mut args = vec![
             "pareto",
             "--variants",
             p(&vars),
@@ -173,10 +173,11 @@ fn compress_then_pareto_on_a_tiny_model() {
             "--warmup",
             "1",
             "--quiet",
-        ])
-        .unwrap()
+        ];
+        args.extend_from_slice(more);
+        frugal(&args)
     };
-    pareto(&out, "0");
+    pareto(&out, "0", &[]).unwrap();
     let report = json(&out.join("pareto.json"));
     let vs = report["variants"].as_array().unwrap();
     assert_eq!(vs.len(), names.len());
@@ -256,7 +257,7 @@ fn compress_then_pareto_on_a_tiny_model() {
     // timing one frame and scoring the other three on every core changes the timings
     // only: every variant's accuracy and confidences are those of the all-timed pass
     let out1 = tmp.path().join("pareto-timed1");
-    pareto(&out1, "1");
+    pareto(&out1, "1", &[]).unwrap();
     let r1 = json(&out1.join("pareto.json"));
     assert_eq!(
         (r1["frames"].as_u64(), r1["timed_frames"].as_u64()),
@@ -275,40 +276,19 @@ fn compress_then_pareto_on_a_tiny_model() {
 
     // on a device: every variant's cost scaled by its precision's slowdown, the
     // device's reference over this machine's, and the front drawn on those costs
-    let e = frugal(&[
-        "pareto",
-        "--variants",
-        p(&vars),
-        "--data",
-        p(&data),
-        "--out",
-        p(&out1),
-        "--device-reference-ms",
-        "194.4",
-    ])
-    .unwrap_err();
+    let e = pareto(&out1, "1", &["--device-reference-ms", "194.4"]).unwrap_err();
     assert!(e.contains("--device-reference-int8-ms"), "{e}");
     let out2 = tmp.path().join("pareto-device");
-    frugal(&[
-        "pareto",
-        "--variants",
-        p(&vars),
-        "--data",
-        p(&data),
-        "--out",
-        p(&out2),
-        "--frames",
-        "4",
-        "--timed-frames",
+    pareto(
+        &out2,
         "1",
-        "--warmup",
-        "1",
-        "--quiet",
-        "--device-reference-ms",
-        "194.4",
-        "--device-reference-int8-ms",
-        "140.1",
-    ])
+        &[
+            "--device-reference-ms",
+            "194.4",
+            "--device-reference-int8-ms",
+            "140.1",
+        ],
+    )
     .unwrap();
     let r2 = json(&out2.join("pareto.json"));
     let ms = |v: &serde_json::Value| v.as_f64().unwrap();
