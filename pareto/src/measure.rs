@@ -126,6 +126,18 @@ pub struct VariantResult {
     pub merged_into: BTreeMap<String, Option<String>>,
 }
 
+impl VariantResult {
+    /// The cost the fronts are drawn on: on the device when one was given, else here.
+    fn front_ms(&self) -> f64 {
+        self.device_ms.unwrap_or(self.latency.cost_ms())
+    }
+
+    /// Its latency noise, the same way.
+    fn front_noise_ms(&self) -> f64 {
+        self.device_noise_ms.unwrap_or(self.latency_noise_ms)
+    }
+}
+
 /// Every timed run (`timings.json`), ms: per timed validation frame (`frames`, indices
 /// into the frames measured), each variant's run and then the reference detectors'
 /// (fp32, then int8), in that order, so that any estimator of a variant's cost, or of its ratio to the
@@ -311,8 +323,8 @@ fn mark_fronts(
         .map(|r| NoisyPoint {
             accuracy: get(r),
             accuracy_se: get_se(r),
-            latency: r.device_ms.unwrap_or(r.latency.cost_ms()),
-            latency_noise: r.device_noise_ms.unwrap_or(r.latency_noise_ms),
+            latency: r.front_ms(),
+            latency_noise: r.front_noise_ms(),
         })
         .collect();
     let points: Vec<Point> = noisy
@@ -631,7 +643,7 @@ pub fn run(opts: &ParetoOptions) -> Result<ParetoReport, ParetoError> {
             .map(|r| {
                 let p = Point {
                     accuracy: get(r),
-                    latency: r.device_ms.unwrap_or(r.latency.cost_ms()),
+                    latency: r.front_ms(),
                 };
                 (r.name.clone(), p)
             })

@@ -157,6 +157,21 @@ fn bilinear_taps(d: usize, scale: f32, n: usize) -> (usize, usize, f32) {
     (i0, i1, s - i0 as f32)
 }
 
+/// The source and output sizes of a resize of `frame` to `w × h` and the source length
+/// per output pixel, `(sw, sh, dw, dh, fx, fy)`; `None` when either is empty.
+fn resize_axes(
+    frame: FrameRef<'_>,
+    w: u32,
+    h: u32,
+) -> Option<(usize, usize, usize, usize, f32, f32)> {
+    let (sw, sh) = (frame.width as usize, frame.height as usize);
+    let (dw, dh) = (w as usize, h as usize);
+    if sw == 0 || sh == 0 || dw == 0 || dh == 0 {
+        return None;
+    }
+    Some((sw, sh, dw, dh, sw as f32 / dw as f32, sh as f32 / dh as f32))
+}
+
 /// Resize an RGB8 frame to `w × h` with bilinear interpolation (pixel centres aligned,
 /// as `align_corners = false`). An empty frame or target gives black pixels; pixels a
 /// short buffer lacks read as black (it is padded with them first).
@@ -168,13 +183,10 @@ fn bilinear_taps(d: usize, scale: f32, n: usize) -> (usize, usize, f32) {
 /// negative beyond float error, and the cast saturates), which equals `round` then
 /// clamping to 0..=255 without a library call per value.
 pub fn resize_bilinear(frame: FrameRef<'_>, w: u32, h: u32) -> Vec<u8> {
-    let (sw, sh) = (frame.width as usize, frame.height as usize);
-    let (dw, dh) = (w as usize, h as usize);
-    let mut out = std::vec![0u8; dw * dh * 3];
-    if sw == 0 || sh == 0 || dw == 0 || dh == 0 {
+    let mut out = std::vec![0u8; w as usize * h as usize * 3];
+    let Some((sw, sh, dw, _, fx, fy)) = resize_axes(frame, w, h) else {
         return out;
-    }
-    let (fx, fy) = (sw as f32 / dw as f32, sh as f32 / dh as f32);
+    };
     // byte offsets of the two taps within a row, and the weight
     let xs: Vec<(usize, usize, f32)> = (0..dw)
         .map(|x| {
@@ -390,13 +402,10 @@ mod tests {
     /// for byte.
     #[allow(clippy::indexing_slicing)]
     fn resize_reference(frame: FrameRef<'_>, w: u32, h: u32) -> Vec<u8> {
-        let (sw, sh) = (frame.width as usize, frame.height as usize);
-        let (dw, dh) = (w as usize, h as usize);
-        let mut out = std::vec![0u8; dw * dh * 3];
-        if sw == 0 || sh == 0 || dw == 0 || dh == 0 {
+        let mut out = std::vec![0u8; w as usize * h as usize * 3];
+        let Some((sw, sh, dw, dh, fx, fy)) = resize_axes(frame, w, h) else {
             return out;
-        }
-        let (fx, fy) = (sw as f32 / dw as f32, sh as f32 / dh as f32);
+        };
         let px = |x: usize, y: usize, c: usize| {
             f32::from(frame.rgb.get((y * sw + x) * 3 + c).copied().unwrap_or(0))
         };

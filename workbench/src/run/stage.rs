@@ -449,41 +449,36 @@ impl Ctx {
                 s("--config"),
                 cfg(),
             ]))?],
-            "pareto" => vec![
-                self.frugal(
-                    &self.quiet(
-                        vec![
-                            s("pareto"),
-                            s("--variants"),
-                            arg(&self.dir("variants")),
-                            s("--data"),
-                            arg(&self.dir("data").join("dataset")),
-                            s("--out"),
-                            arg(out),
-                            s("--threads"),
-                            c.pareto.threads.to_string(),
-                            s("--frames"),
-                            c.pareto.frames.to_string(),
-                            s("--timed-frames"),
-                            c.pareto.timed_frames.to_string(),
-                            s("--warmup"),
-                            c.pareto.warmup.to_string(),
-                            s("--threshold"),
-                            c.pareto.threshold.to_string(),
-                        ]
-                        .into_iter()
-                        .chain(self.pareto_device().into_iter().flat_map(|[fp32, int8]| {
-                            [
-                                s("--device-reference-ms"),
-                                fp32.to_string(),
-                                s("--device-reference-int8-ms"),
-                                int8.to_string(),
-                            ]
-                        }))
-                        .collect(),
-                    ),
-                )?,
-            ],
+            "pareto" => {
+                let mut a = vec![
+                    s("pareto"),
+                    s("--variants"),
+                    arg(&self.dir("variants")),
+                    s("--data"),
+                    arg(&self.dir("data").join("dataset")),
+                    s("--out"),
+                    arg(out),
+                    s("--threads"),
+                    c.pareto.threads.to_string(),
+                    s("--frames"),
+                    c.pareto.frames.to_string(),
+                    s("--timed-frames"),
+                    c.pareto.timed_frames.to_string(),
+                    s("--warmup"),
+                    c.pareto.warmup.to_string(),
+                    s("--threshold"),
+                    c.pareto.threshold.to_string(),
+                ];
+                if let Some([fp32, int8]) = self.pareto_device() {
+                    a.extend([
+                        s("--device-reference-ms"),
+                        fp32.to_string(),
+                        s("--device-reference-int8-ms"),
+                        int8.to_string(),
+                    ]);
+                }
+                vec![self.frugal(&self.quiet(a))?]
+            }
             "replay" => {
                 let r = &c.replay;
                 let log = arg(&out.join("replay.json"));
