@@ -220,6 +220,8 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
         "front.map",
         "replay.mdp+tracker.speedup",
         "budget.heldout.33.margin",
+        "budget.heldout.33.margin_lo",
+        "budget.test.8.margin_hi",
         "flights.easy.fps_ratio",
         "time.total.min",
     ] {

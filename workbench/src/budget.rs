@@ -6,8 +6,8 @@ use anyhow::Context;
 use frugal_data::{Dataset, Split};
 use frugal_policies::budget::{BudgetConfig, train_budget};
 use frugal_policies::budget_eval::{
-    BudgetScore, TuneSet, budget_csv, budget_margins, budget_scores, budget_table, plot_budget,
-    search_tables, stream_all, stream_steps,
+    Margin, RESAMPLES, TuneSet, add_intervals, budget_csv, budget_margins, budget_scores,
+    budget_table, plot_budget, search_tables, stream_all, stream_steps,
 };
 use frugal_policies::eval::{EvalConfig, Strategy, run_all};
 use frugal_policies::replay::{DatasetFrames, VideoLog};
@@ -26,7 +26,8 @@ fn with_policy_buckets(log: &ReplayLog, policy: &TrainedPolicy) -> ReplayLog {
 }
 
 /// Score `log`'s test videos (frames from `frames`, the dataset at `data`) and write
-/// `budget.json|csv|md` and the plots into `out`.
+/// `budget.json|csv|md`, `margins.json` (with each margin's interval over the videos)
+/// and the plots into `out`; the table, as `budget.md` holds it.
 fn score_log(
     log: &ReplayLog,
     data: &Path,
@@ -35,7 +36,7 @@ fn score_log(
     cost: frugal_policies::eval::TrackerCost,
     eval: &EvalConfig,
     out: &Path,
-) -> anyhow::Result<Vec<BudgetScore>> {
+) -> anyhow::Result<String> {
     let pol = policy
         .budget
         .as_ref()
@@ -60,13 +61,16 @@ fn score_log(
     let runs = stream_all(log, &videos, frames, cost, pol, &bundle, 0.5, &|| pb.inc(1))?;
     pb.finish_and_clear();
     let scores = budget_scores(log, &videos, pol, &runs, 0.5);
+    let mut margins: Vec<Margin> = budget_margins(&scores);
+    add_intervals(&mut margins, log, &videos, pol, &runs, RESAMPLES);
+    let table = budget_table(&scores, &margins);
     std::fs::create_dir_all(out)?;
     frugal_data::dataset::write_json_atomic(&out.join("budget.json"), &scores)?;
     frugal_data::dataset::write_atomic(&out.join("budget.csv"), budget_csv(&scores).as_bytes())?;
-    frugal_data::dataset::write_atomic(&out.join("budget.md"), budget_table(&scores).as_bytes())?;
-    frugal_data::dataset::write_json_atomic(&out.join("margins.json"), &budget_margins(&scores))?;
+    frugal_data::dataset::write_atomic(&out.join("budget.md"), table.as_bytes())?;
+    frugal_data::dataset::write_json_atomic(&out.join("margins.json"), &margins)?;
     plot_budget(&out.join("budget"), &scores)?;
-    Ok(scores)
+    Ok(table)
 }
 
 /// The files `frugal policy budget` reads and writes.
@@ -377,16 +381,15 @@ fn score_all(
     out: &Path,
     heldout: &[PathBuf],
 ) -> anyhow::Result<()> {
-    let scores = score_log(log, root, frames, policy, cost, eval, out)?;
-    print!("{}", budget_table(&scores));
+    print!("{}", score_log(log, root, frames, policy, cost, eval, out)?);
     for (i, h) in heldout.iter().enumerate() {
         let hl = ReplayLog::load(h)?;
         let dir = out.join(format!("heldout-{}", i + 1));
         let ds = Dataset::load(&hl.dataset)?;
         let frames = DatasetFrames::new(&ds);
-        let scores = score_log(&hl, &hl.dataset, &frames, policy, cost, eval, &dir)?;
+        let table = score_log(&hl, &hl.dataset, &frames, policy, cost, eval, &dir)?;
         println!("\nheld out: {}", h.display());
-        print!("{}", budget_table(&scores));
+        print!("{table}");
     }
     println!("wrote {}", out.display());
     Ok(())

@@ -169,6 +169,14 @@ pub fn collect(run: &Path) -> Figures {
                 ) {
                     put(format!("{k}.margin"), Some(signed(100.0 * (o - bb))));
                 }
+                // the margin's interval over the videos (paired bootstrap)
+                let bounds = m["interval"]["best_baseline"].as_array();
+                for (end, x) in ["lo", "hi"].iter().zip(bounds.into_iter().flatten()) {
+                    put(
+                        format!("{k}.margin_{end}"),
+                        x.as_f64().map(|x| signed(100.0 * x)),
+                    );
+                }
                 let versus = |want: &str| {
                     m["versus"]
                         .as_array()

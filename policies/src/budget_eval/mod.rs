@@ -34,9 +34,11 @@
 //! The paper's MDP also keeps its offline (clock-free) evaluation in [`crate::eval`].
 
 mod hindsight;
+mod interval;
 mod score;
 mod search;
 
+pub use interval::{LEVEL, MarginInterval, RESAMPLES, add_intervals};
 pub use score::{
     BudgetScore, Margin, budget_csv, budget_margins, budget_scores, budget_table, plot_budget,
 };

@@ -11,6 +11,7 @@ use frugal_runtime::ClassId;
 use frugal_runtime::ForecastParams;
 use serde::{Deserialize, Serialize};
 
+use super::interval::MarginInterval;
 use super::{BudgetRun, BudgetStrategy};
 
 /// One strategy at one budget on one scenario.
@@ -254,10 +255,14 @@ pub struct Margin {
     /// Budget policy minus each other strategy, sAP@0.5 (0–1), in [`BudgetStrategy::ALL`]
     /// order.
     pub versus: Vec<(String, f64)>,
+    /// How sure the margins over the simple baselines are: a paired bootstrap over the
+    /// videos ([`super::interval`]). Absent from margins written before it was kept.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub interval: Option<MarginInterval>,
 }
 
 /// The simple baselines the headline compares against: every one keeps the budget.
-const SIMPLE: [BudgetStrategy; 4] = [
+pub(super) const SIMPLE: [BudgetStrategy; 4] = [
     BudgetStrategy::Static,
     BudgetStrategy::StaticTracker,
     BudgetStrategy::RandomTracker,
@@ -292,14 +297,16 @@ pub fn budget_margins(scores: &[BudgetScore]) -> Vec<Margin> {
                     .filter(|&&s| s != BudgetStrategy::Budget)
                     .filter_map(|&s| row(s).map(|r| (s.name().to_string(), ours - r.sap50)))
                     .collect(),
+                interval: None,
             })
         })
         .collect()
 }
 
 /// The overall rows as a Markdown table, one block per budget, then the budget
-/// policy's margins.
-pub fn budget_table(scores: &[BudgetScore]) -> String {
+/// policy's `margins` ([`budget_margins`] of the same scores), each over a simple
+/// baseline with its interval where it has one.
+pub fn budget_table(scores: &[BudgetScore], margins: &[Margin]) -> String {
     use std::fmt::Write as _;
     let mut s = String::from(
         "| budget | strategy | sAP@0.5 | sAP@[.5:.95] | F1 | streaming F1 | speed-up vs static | device ms/frame | skipped | deadline misses | P50 / P95 latency, ms |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
@@ -324,16 +331,26 @@ pub fn budget_table(scores: &[BudgetScore]) -> String {
             t.p95_latency_ms
         );
     }
-    let margins = budget_margins(scores);
     if let Some(first) = margins.first() {
-        s.push_str("\nThe budget policy minus each strategy, sAP@0.5 points:\n\n| budget | best simple baseline |");
+        s.push_str("\nThe budget policy minus each strategy, sAP@0.5 points");
+        if let Some(i) = margins.iter().find_map(|m| m.interval.as_ref()) {
+            let _ = write!(
+                s,
+                " (in brackets, over a simple baseline: the central {:.0} % of {} paired \
+                 resamples of the {} videos)",
+                100.0 * i.level,
+                i.resamples,
+                i.videos
+            );
+        }
+        s.push_str(":\n\n| budget | best simple baseline |");
         for (name, _) in &first.versus {
             let _ = write!(s, " vs {name} |");
         }
         s.push_str("\n|---|---|");
         s.push_str(&"---|".repeat(first.versus.len()));
         s.push('\n');
-        for m in &margins {
+        for m in margins {
             let _ = write!(
                 s,
                 "| {} ms | {} ({:.1}) |",
@@ -341,8 +358,17 @@ pub fn budget_table(scores: &[BudgetScore]) -> String {
                 m.best_baseline,
                 100.0 * m.best_baseline_sap50
             );
-            for (_, d) in &m.versus {
-                let _ = write!(s, " {:+.1} |", 100.0 * d);
+            for (name, d) in &m.versus {
+                let _ = write!(s, " {:+.1}", 100.0 * d);
+                let within = m
+                    .interval
+                    .iter()
+                    .flat_map(|i| &i.versus)
+                    .find(|(n, _)| n == name);
+                if let Some((_, [lo, hi])) = within {
+                    let _ = write!(s, " [{:+.1}, {:+.1}]", 100.0 * lo, 100.0 * hi);
+                }
+                s.push_str(" |");
             }
             s.push('\n');
         }

@@ -8,8 +8,8 @@ use frugal_policies::budget::{
     BudgetConfig, BudgetPolicies, SearchLevel, VideoCache, train_budget,
 };
 use frugal_policies::budget_eval::{
-    BudgetRun, BudgetScore, BudgetStrategy, Plan, TuneSet, budget_scores, search_tables,
-    stream_all, stream_strategy,
+    BudgetRun, BudgetScore, BudgetStrategy, LEVEL, Plan, TuneSet, add_intervals, budget_margins,
+    budget_scores, search_tables, stream_all, stream_strategy,
 };
 use frugal_policies::eval::{EvalConfig, TRACK_POINTS, TrackerCost};
 use frugal_policies::replay::{Frames, VideoLog};
@@ -916,6 +916,74 @@ fn strategies_that_behave_alike_under_two_budgets_stream_alike() {
             (&y.strategy, &y.scenario, y.sap50, y.f1)
         );
     }
+}
+
+/// Each margin's interval comes from the same streams as the margin: on one video
+/// every resample draws that video, so both bounds are the margin itself (the
+/// per-video tallies score as the overall rows do); on every test video the bounds
+/// hold the margin, the best simple baseline's is its entry, and the figures repeat.
+#[test]
+fn the_margins_intervals_come_from_the_streams_the_margins_do() {
+    let (log, frames, pol) = trained();
+    let (_, bytes) = bundled(&log, &pol);
+    let videos: Vec<&VideoLog> = log.split(Split::Test).collect();
+    assert!(videos.len() > 1);
+    let with_intervals = |videos: &[&VideoLog], resamples: usize| {
+        let runs = stream_all(&log, videos, &frames, COST, &pol, &bytes, 0.5, &|| {}).unwrap();
+        let scores = budget_scores(&log, videos, &pol, &runs, 0.5);
+        let mut margins = budget_margins(&scores);
+        assert!(margins.iter().all(|m| m.interval.is_none()));
+        add_intervals(&mut margins, &log, videos, &pol, &runs, resamples);
+        (scores, margins)
+    };
+    // each video alone: every resample draws it, both bounds are its margin
+    let mut moved = 0;
+    for v in &videos {
+        let (_, one) = with_intervals(std::slice::from_ref(v), 20);
+        assert_eq!(one.len(), pol.config.budgets_ms.len());
+        for m in &one {
+            let i = m.interval.as_ref().unwrap();
+            assert_eq!((i.videos, i.resamples, i.level), (1, 20, LEVEL));
+            assert_eq!(i.versus.len(), 4, "{i:?}");
+            for (name, [lo, hi]) in &i.versus {
+                let d = m.versus.iter().find(|(n, _)| n == name).unwrap().1;
+                assert!(
+                    (lo - d).abs() < 1e-12 && (hi - d).abs() < 1e-12,
+                    "{name}: {d} {i:?}"
+                );
+                moved += usize::from(d.abs() > 0.01);
+            }
+        }
+    }
+    assert!(moved > 0, "no video tells the strategies apart");
+    let (scores, all) = with_intervals(&videos, 200);
+    for m in &all {
+        let i = m.interval.as_ref().unwrap();
+        assert_eq!(i.videos, videos.len());
+        let best = i
+            .versus
+            .iter()
+            .find(|(n, _)| *n == m.best_baseline)
+            .unwrap()
+            .1;
+        assert_eq!(best, i.best_baseline);
+        for (name, [lo, hi]) in &i.versus {
+            let d = m.versus.iter().find(|(n, _)| n == name).unwrap().1;
+            assert!(
+                lo <= hi && *lo <= d + 1e-12 && d <= hi + 1e-12,
+                "{name}: {d} {i:?}"
+            );
+        }
+    }
+    // seeded: the same streams give the same bounds; the table prints them
+    let (_, again) = with_intervals(&videos, 200);
+    assert_eq!(all, again);
+    let table = frugal_policies::budget_eval::budget_table(&scores, &all);
+    let [lo, hi] = all[0].interval.as_ref().unwrap().versus[0].1;
+    assert!(
+        table.contains(&format!("[{:+.1}, {:+.1}]", 100.0 * lo, 100.0 * hi)),
+        "{table}"
+    );
 }
 
 #[test]
