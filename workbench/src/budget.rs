@@ -6,8 +6,8 @@ use anyhow::Context;
 use frugal_data::{Dataset, Split};
 use frugal_policies::budget::{BudgetConfig, train_budget};
 use frugal_policies::budget_eval::{
-    Margin, RESAMPLES, TuneSet, add_intervals, budget_csv, budget_margins, budget_scores,
-    budget_table, plot_budget, search_tables, stream_all, stream_steps,
+    RESAMPLES, TuneSet, add_intervals, budget_csv, budget_margins, budget_scores, budget_table,
+    plot_budget, search_tables, stream_all, stream_steps,
 };
 use frugal_policies::eval::{EvalConfig, Strategy, run_all};
 use frugal_policies::replay::{DatasetFrames, VideoLog};
@@ -61,7 +61,7 @@ fn score_log(
     let runs = stream_all(log, &videos, frames, cost, pol, &bundle, 0.5, &|| pb.inc(1))?;
     pb.finish_and_clear();
     let scores = budget_scores(log, &videos, pol, &runs, 0.5);
-    let mut margins: Vec<Margin> = budget_margins(&scores);
+    let mut margins = budget_margins(&scores);
     add_intervals(&mut margins, log, &videos, pol, &runs, RESAMPLES);
     let table = budget_table(&scores, &margins);
     std::fs::create_dir_all(out)?;
