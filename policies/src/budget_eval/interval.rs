@@ -24,6 +24,7 @@ use crate::replay::{ReplayLog, VideoLog};
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
 
 /// Resamples `frugal policy budget` draws.
 pub const RESAMPLES: usize = 1000;
@@ -142,14 +143,22 @@ pub fn add_intervals(
 ) {
     let draws = draws(videos.len(), resamples);
     let classes = log.classes.max(1);
+    // runs of equal behaviour are equal ([`super::first_alike`]): each is tallied once
+    let pairs: Vec<(usize, BudgetStrategy)> = runs.iter().map(|(k, s, _)| (*k, *s)).collect();
+    let alike = super::first_alike(pol, &pairs);
+    let mut tallied: HashMap<usize, Vec<Tally>> = HashMap::new();
     for m in margins {
         let Some(k) = pol.config.budgets_ms.iter().position(|&b| b == m.budget_ms) else {
             continue;
         };
-        let of = |s: BudgetStrategy| {
-            runs.iter()
-                .find(|(kk, ss, _)| *kk == k && *ss == s)
-                .map(|(_, _, rs)| per_video(log, videos, pol, rs))
+        let mut of = |s: BudgetStrategy| {
+            let i = pairs.iter().position(|&p| p == (k, s))?;
+            let first = alike.get(i).copied().unwrap_or(i);
+            if !tallied.contains_key(&first) {
+                let (_, _, rs) = runs.get(first)?;
+                tallied.insert(first, per_video(log, videos, pol, rs));
+            }
+            tallied.get(&first).cloned()
         };
         let Some(policy) = of(BudgetStrategy::Budget) else {
             continue;
