@@ -41,6 +41,13 @@ pub struct GenConfig {
     /// validation and test videos stay long enough for the tracker and the policy.
     /// 0: the same as `frames_per_video`.
     pub train_frames_per_video: u32,
+    /// Frames over which a video's motion is paced: each sign's approach lasts 0.6 to
+    /// 1.2 times this, and the camera sweeps its pan and zoom over it (back and forth
+    /// in a video longer than this). 0: the video's own length, so that a longer video
+    /// is a slower one; a value below `frames_per_video` makes a long video a sequence
+    /// of approaches at that pace, as a longer flight is. Applies to every split.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub pace_frames: u32,
     /// At most this many signs are in view at once (1..=3).
     pub max_signs: u32,
     /// Fraction of videos' time with no sign in view (approach gaps), 0..1.
@@ -76,6 +83,7 @@ impl Default for GenConfig {
             test_per_combo: 4,
             frames_per_video: 60,
             train_frames_per_video: 6,
+            pace_frames: 0,
             max_signs: 3,
             empty_fraction: 0.1,
             min_sign_px: 14.0,
@@ -85,6 +93,12 @@ impl Default for GenConfig {
             max_motion_blur_px: 4.0,
         }
     }
+}
+
+/// Serde's test for leaving an unset `pace_frames` out of a config's JSON form, so that
+/// the hash of every config that does not set it is what it was before it existed.
+fn is_zero(v: &u32) -> bool {
+    *v == 0
 }
 
 /// One planned video: its id, scenario and split (before any pixel is drawn).

@@ -84,6 +84,8 @@ pub struct Video {
     seed: u64,
     world: Canvas,
     cam0: (f32, f32),
+    /// Frames over which the camera sweeps its pan and zoom (then back, and so on).
+    pace: f32,
     cam_v: (f32, f32),
     zoom_rate: f32,
     shake: [(f32, f32, f32); 4],
@@ -97,6 +99,22 @@ pub struct Video {
     min_visible_fraction: f32,
 }
 
+/// How far into its sweep a camera paced over `pace` frames is at frame `t`, in frames,
+/// and which way it moves (1 out, −1 back): `t` itself up to `pace`, then back to 0 at
+/// `2 · pace`, out again, and so on (a triangle wave, so a video longer than its pace
+/// stays within the pan and zoom range it drew).
+fn sweep(t: f32, pace: f32) -> (f32, f32) {
+    if t <= pace || pace <= 0.0 {
+        return (t, 1.0);
+    }
+    let phase = t % (2.0 * pace);
+    if phase <= pace {
+        (phase, 1.0)
+    } else {
+        (2.0 * pace - phase, -1.0)
+    }
+}
+
 impl Video {
     /// Plan video `plan` of `config`, whose seed is `seed`.
     pub fn new(config: &GenConfig, plan: &VideoPlan, seed: u64) -> Video {
@@ -107,6 +125,11 @@ impl Video {
         let wh = (hf * 1.5).ceil() as usize;
         let world = draw_world(&mut rng, ww, wh, plan.clutter);
         let t = plan.frames.max(1) as f32;
+        // the motion's pace: the video's length unless the config sets one
+        let pace = match config.pace_frames {
+            0 => t,
+            p => p as f32,
+        };
 
         let (xmin, xmax) = (wf * 0.5 + 2.0, ww as f32 - wf * 0.5 - 2.0);
         let (ymin, ymax) = (hf * 0.5 + 2.0, wh as f32 - hf * 0.5 - 2.0);
@@ -143,7 +166,7 @@ impl Video {
             let a = a0
                 + lane as f32 * std::f32::consts::TAU / lanes as f32
                 + rng.random_range(-0.3..0.3);
-            let dur_of = |rng: &mut ChaCha8Rng| t.max(12.0) * rng.random_range(0.6..1.2);
+            let dur_of = |rng: &mut ChaCha8Rng| pace.max(12.0) * rng.random_range(0.6..1.2);
             let mut dur = dur_of(&mut rng);
             let mut start = -rng.random_range(0.0..dur * 0.9);
             while start < t {
@@ -212,8 +235,9 @@ impl Video {
             seed,
             world,
             cam0: (cx0, cy0),
-            cam_v: ((cx1 - cx0) / t, (cy1 - cy0) / t),
-            zoom_rate: rng.random_range(0.1..0.3) / t,
+            pace,
+            cam_v: ((cx1 - cx0) / pace, (cy1 - cy0) / pace),
+            zoom_rate: rng.random_range(0.1..0.3) / pace,
             shake,
             jitter,
             exposure: rng.random_range(0.5..0.9),
@@ -246,10 +270,11 @@ impl Video {
         let (w, h) = (self.width, self.height);
         let (wf, hf) = (w as f32, h as f32);
         let t = index as f32;
-        let zoom = 1.0 + self.zoom_rate * t;
+        let (swept, way) = sweep(t, self.pace);
+        let zoom = 1.0 + self.zoom_rate * swept;
         let cam = (
-            self.cam0.0 + self.cam_v.0 * t,
-            self.cam0.1 + self.cam_v.1 * t,
+            self.cam0.0 + self.cam_v.0 * swept,
+            self.cam0.1 + self.cam_v.1 * swept,
         );
         let shake = self.shake_at(t);
 
@@ -324,8 +349,8 @@ impl Video {
         let v = {
             let s0 = self.shake_at((t - 1.0).max(0.0));
             (
-                -self.cam_v.0 * zoom + (shake.0 - s0.0),
-                -self.cam_v.1 * zoom + (shake.1 - s0.1),
+                -self.cam_v.0 * way * zoom + (shake.0 - s0.0),
+                -self.cam_v.1 * way * zoom + (shake.1 - s0.1),
             )
         };
         let mut blur = (v.0 * self.exposure, v.1 * self.exposure);
@@ -691,6 +716,111 @@ mod tests {
         let img = vec![0.0, 0.0, 1.0, 0.0, 0.0];
         let b = motion_blur(&img, 5, 1, &[(-1, 0), (0, 0), (1, 0)]);
         assert!((b[1] - 1.0 / 3.0).abs() < 1e-6 && (b[2] - 1.0 / 3.0).abs() < 1e-6 && b[0] == 0.0);
+    }
+
+    #[test]
+    fn a_sweep_runs_out_and_back_within_its_pace() {
+        assert_eq!(sweep(0.0, 24.0), (0.0, 1.0));
+        assert_eq!(sweep(17.0, 24.0), (17.0, 1.0));
+        assert_eq!(sweep(24.0, 24.0), (24.0, 1.0));
+        assert_eq!(sweep(30.0, 24.0), (18.0, -1.0));
+        assert_eq!(sweep(48.0, 24.0), (0.0, 1.0));
+        assert_eq!(sweep(50.0, 24.0), (2.0, 1.0));
+        for i in 0..500 {
+            let (s, way) = sweep(i as f32 * 0.37, 24.0);
+            assert!(
+                (0.0..=24.0).contains(&s) && way.abs() == 1.0,
+                "{i}: {s} {way}"
+            );
+        }
+    }
+
+    /// Pacing a video over its own length draws the very same video, and a config that
+    /// leaves the pace unset keeps the hash it had before the pace existed.
+    #[test]
+    fn a_pace_of_the_video_s_own_length_draws_the_same_video() {
+        let config = single_sign_config();
+        let paced = GenConfig {
+            pace_frames: config.frames_per_video,
+            ..config.clone()
+        };
+        let p = plan(Clutter::High, Light::Low);
+        for seed in 0..2u64 {
+            let (a, b) = (Video::new(&config, &p, seed), Video::new(&paced, &p, seed));
+            for index in 0..config.frames_per_video {
+                let (fa, fb) = (
+                    a.frame(index, &RenderOptions::default()),
+                    b.frame(index, &RenderOptions::default()),
+                );
+                assert_eq!(fa.rgb, fb.rgb, "seed {seed} frame {index}");
+                assert_eq!(fa.objects, fb.objects, "seed {seed} frame {index}");
+            }
+        }
+        let json = serde_json::to_string(&GenConfig::default()).expect("json");
+        assert!(!json.contains("pace_frames"), "{json}");
+        assert_ne!(config.hash(), paced.hash());
+    }
+
+    /// Per-frame motion of the one sign in view (the change of its box's height plus
+    /// its centre's shift, in pixels, between consecutive frames that both show one),
+    /// the median over `seeds` videos of `frames` frames paced over `pace`.
+    fn median_motion(frames: u32, pace: u32, seeds: u64) -> (f32, usize) {
+        let config = GenConfig {
+            frames_per_video: frames,
+            pace_frames: pace,
+            ..single_sign_config()
+        };
+        let p = VideoPlan {
+            frames,
+            ..plan(Clutter::Low, Light::Normal)
+        };
+        let mut steps = Vec::new();
+        let mut appearances = 0;
+        for seed in 0..seeds {
+            let v = Video::new(&config, &p, seed);
+            let mut last: Option<BBox> = None;
+            for index in 0..frames {
+                let now = v
+                    .frame(index, &RenderOptions::default())
+                    .objects
+                    .first()
+                    .map(|o| o.bbox);
+                match (last, now) {
+                    (Some(a), Some(b)) => {
+                        let ((ax, ay), (bx, by)) = (a.center(), b.center());
+                        steps.push((b.height() - a.height()).abs() + (bx - ax).hypot(by - ay));
+                    }
+                    (None, Some(_)) => appearances += 1,
+                    _ => {}
+                }
+                last = now;
+            }
+        }
+        steps.sort_by(f32::total_cmp);
+        (
+            steps.get(steps.len() / 2).copied().unwrap_or(f32::NAN),
+            appearances,
+        )
+    }
+
+    /// A video four times as long is four times slower when paced over its own length,
+    /// and as fast as a short one, with more approaches, when paced over the short
+    /// one's length.
+    #[test]
+    fn a_long_video_at_a_short_pace_moves_as_fast_as_a_short_one() {
+        let (short, short_seen) = median_motion(24, 0, 6);
+        let (slow, _) = median_motion(96, 0, 6);
+        let (paced, paced_seen) = median_motion(96, 24, 6);
+        assert!(short > 0.5, "short {short}");
+        assert!(slow < 0.5 * short, "slow {slow} against short {short}");
+        assert!(
+            paced > 0.6 * short && paced < 1.6 * short,
+            "paced {paced} against short {short}"
+        );
+        assert!(
+            paced_seen > 2 * short_seen,
+            "appearances {paced_seen} against {short_seen}"
+        );
     }
 }
 
