@@ -25,6 +25,7 @@ use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
+use std::collections::hash_map::Entry;
 
 /// Resamples `frugal policy budget` draws.
 pub const RESAMPLES: usize = 1000;
@@ -154,11 +155,14 @@ pub fn add_intervals(
         let mut of = |s: BudgetStrategy| {
             let i = pairs.iter().position(|&p| p == (k, s))?;
             let first = alike.get(i).copied().unwrap_or(i);
-            if !tallied.contains_key(&first) {
-                let (_, _, rs) = runs.get(first)?;
-                tallied.insert(first, per_video(log, videos, pol, rs));
-            }
-            tallied.get(&first).cloned()
+            let tallies = match tallied.entry(first) {
+                Entry::Occupied(e) => e.into_mut(),
+                Entry::Vacant(e) => {
+                    let (_, _, rs) = runs.get(first)?;
+                    e.insert(per_video(log, videos, pol, rs))
+                }
+            };
+            Some(tallies.clone())
         };
         let Some(policy) = of(BudgetStrategy::Budget) else {
             continue;
