@@ -803,9 +803,9 @@ mod tests {
         )
     }
 
-    /// A video four times as long is four times slower when paced over its own length,
-    /// and as fast as a short one, with more approaches, when paced over the short
-    /// one's length.
+    /// A video four times as long moves less than half as fast per frame when paced
+    /// over its own length, and about as fast as a short one, with more than twice the
+    /// approaches, when paced over the short one's length.
     #[test]
     fn a_long_video_at_a_short_pace_moves_as_fast_as_a_short_one() {
         let (short, short_seen) = median_motion(24, 0, 6);
