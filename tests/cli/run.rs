@@ -214,6 +214,65 @@ fn the_tiny_pipeline_runs_end_to_end_skips_when_unchanged_and_reruns_downstream(
         e.contains("policy/policy.json") && e.contains("holds no budget tables"),
         "{e}"
     );
+    // the tables learnt again with the tracker cost the stage's were made with, not
+    // timed again: the stage's very tables, and its figures
+    let again = tmp.path().join("again");
+    let (base, config, tuning) = (
+        run.join("policy/policy.json"),
+        run.join("config/budget.json"),
+        run.join("budget/tuning/replay.json"),
+    );
+    let relearn = |from: &Path, extra: &[&str]| -> Result<(), String> {
+        let mut args = vec![
+            "policy",
+            "budget",
+            "--log",
+            p(&replay),
+            "--policy",
+            p(&base),
+            "--out",
+            p(&again),
+            "--config",
+            p(&config),
+            "--eval-config",
+            p(&evaluation),
+            "--heldout",
+            p(&held_log),
+            "--tune",
+            p(&tuning),
+            "--tracker-from",
+            p(from),
+        ];
+        args.extend_from_slice(extra);
+        frugal(&args)
+    };
+    relearn(&run.join("budget/policy.json"), &[]).unwrap();
+    assert_eq!(
+        json(&again.join("policy.json"))["budget"],
+        json(&run.join("budget/policy.json"))["budget"],
+        "the tables learnt with the stage's tracker cost"
+    );
+    for file in ["margins.json", "heldout-1/margins.json", "budget.json"] {
+        assert_eq!(
+            json(&again.join(file)),
+            json(&run.join("budget").join(file)),
+            "{file}"
+        );
+    }
+    // a policy without budget tables has no tracker cost to give; --keep-tables
+    // learns nothing, so takes none
+    let e = relearn(&run.join("policy/policy.json"), &[]).unwrap_err();
+    assert!(
+        e.contains("policy/policy.json") && e.contains("no tracker cost"),
+        "{e}"
+    );
+    let e = keep_args(
+        &replay,
+        &run.join("budget/policy.json"),
+        &["--tracker-from", p(&run.join("budget/policy.json"))],
+    )
+    .unwrap_err();
+    assert!(e.contains("--tracker-from"), "{e}");
     let figures = json(&run.join("figures.json"));
     for key in [
         "detector.map",

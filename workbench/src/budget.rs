@@ -92,6 +92,10 @@ pub struct Files<'a> {
     /// Score the budget tables `policy` already holds as they are: no learning, no
     /// search, the tracker's cost model the tables were made with.
     pub keep_tables: bool,
+    /// Learn the tables with the tracker's cost model the budget tables of this
+    /// policy were made with, on the device as they charged it, rather than timing the
+    /// tracker again.
+    pub tracker_from: Option<&'a Path>,
 }
 
 /// Run `frugal policy budget`.
@@ -105,6 +109,7 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
         heldout,
         tune,
         keep_tables,
+        tracker_from,
     } = *files;
     let log = ReplayLog::load(log_path)?;
     let mut policy = TrainedPolicy::load(policy_path)?;
@@ -112,9 +117,9 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
         .map(Path::to_path_buf)
         .unwrap_or_else(|| log.dataset.clone());
     if keep_tables {
-        if config.is_some() || !tune.is_empty() {
+        if config.is_some() || !tune.is_empty() || tracker_from.is_some() {
             anyhow::bail!(
-                "--keep-tables scores the tables {} holds as they are: --config and --tune do not apply",
+                "--keep-tables scores the tables {} holds as they are: --config, --tune and --tracker-from do not apply",
                 policy_path.display()
             );
         }
@@ -221,24 +226,37 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
     if train.is_empty() {
         anyhow::bail!("{}: the log has no training videos", log_path.display());
     }
-    let timed = tracker_cost(&on_device, &policy, &train, &frames, eval)?;
-    cfg.slowdown_tracker = cfg.device_slowdown_tracker(timed.reference_ms);
-    print_anchor(
-        &cfg.device,
-        [
-            cfg.slowdown_tracker,
-            cfg.device_tracker_reference_ms,
-            timed.reference_ms,
-        ],
-        [
-            "reference tracker",
-            "between the tracker's calls",
-            "the tracker",
-            "tracker",
-        ],
-        "no reference tracker timing",
-    );
-    let cost = cfg.tracker_on_device(timed);
+    let cost = match tracker_from {
+        Some(from) => {
+            let (cost, slowdown_tracker) = stored_tracker_cost(from, cfg.slowdown)?;
+            cfg.slowdown_tracker = slowdown_tracker;
+            println!(
+                "tracker cost from {} (its tables' own, not timed again)",
+                from.display()
+            );
+            cost
+        }
+        None => {
+            let timed = tracker_cost(&on_device, &policy, &train, &frames, eval)?;
+            cfg.slowdown_tracker = cfg.device_slowdown_tracker(timed.reference_ms);
+            print_anchor(
+                &cfg.device,
+                [
+                    cfg.slowdown_tracker,
+                    cfg.device_tracker_reference_ms,
+                    timed.reference_ms,
+                ],
+                [
+                    "reference tracker",
+                    "between the tracker's calls",
+                    "the tracker",
+                    "tracker",
+                ],
+                "no reference tracker timing",
+            );
+            cfg.tracker_on_device(timed)
+        }
+    };
     println!(
         "tracker on the device: pyramid {:.2} ms, track {:.2} ms/object, init {:.2} ms/object",
         cost.pyramid_ms * cfg.slowdown,
@@ -316,6 +334,33 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
     std::fs::create_dir_all(out)?;
     policy.save(&out.join("policy.json"))?;
     score_all(&log, &root, &frames, &policy, cost, eval, out, heldout)
+}
+
+/// The tracker's cost model the budget tables of the policy at `path` were made with,
+/// for a stage whose fp32 slowdown is `slowdown`: the same device time (the stored
+/// costs are device ms over that policy's slowdown), and the tracker slowdown it was
+/// timed with.
+fn stored_tracker_cost(
+    path: &Path,
+    slowdown: f64,
+) -> anyhow::Result<(frugal_policies::eval::TrackerCost, Option<f64>)> {
+    let from = TrainedPolicy::load(path)?;
+    let budget = from.budget.as_ref().with_context(|| {
+        format!(
+            "{}: holds no budget tables, so no tracker cost they were made with",
+            path.display()
+        )
+    })?;
+    let cost = budget.tracker_cost.with_context(|| {
+        format!(
+            "{}: its budget tables were made before their tracker cost was kept",
+            path.display()
+        )
+    })?;
+    Ok((
+        cost.scaled(budget.config.slowdown / slowdown),
+        budget.config.slowdown_tracker,
+    ))
 }
 
 /// Reports one of the device's anchors: `[slowdown, device_ms, host_ms]` as the

@@ -93,6 +93,12 @@ struct BudgetArgs {
     /// made elsewhere, on new videos or under other latencies.
     #[arg(long)]
     keep_tables: bool,
+    /// Learn the tables with the tracker cost the budget tables of this policy.json
+    /// (one this command wrote) were made with, instead of timing the tracker again:
+    /// two passes that differ in a setting or in their tuning videos then differ in
+    /// that alone (the tracker's timing otherwise moves a table from pass to pass).
+    #[arg(long, value_name = "POLICY")]
+    tracker_from: Option<PathBuf>,
 }
 
 /// Options of `frugal policy record`.
@@ -439,6 +445,7 @@ pub fn run(args: PolicyArgs) -> anyhow::Result<()> {
                 heldout: &a.heldout,
                 tune: &a.tune,
                 keep_tables: a.keep_tables,
+                tracker_from: a.tracker_from.as_deref(),
             },
             &read_eval_config(a.eval_config.as_deref())?,
         ),

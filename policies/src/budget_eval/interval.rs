@@ -145,15 +145,14 @@ pub fn add_intervals(
     let draws = draws(videos.len(), resamples);
     let classes = log.classes.max(1);
     // runs of equal behaviour are equal ([`super::first_alike`]): each is tallied once
-    let pairs: Vec<(usize, BudgetStrategy)> = runs.iter().map(|(k, s, _)| (*k, *s)).collect();
-    let alike = super::first_alike(pol, &pairs);
+    let alike = super::first_alike_runs(pol, runs);
     let mut tallied: HashMap<usize, Vec<Tally>> = HashMap::new();
     for m in margins {
         let Some(k) = pol.config.budgets_ms.iter().position(|&b| b == m.budget_ms) else {
             continue;
         };
         let mut of = |s: BudgetStrategy| {
-            let i = pairs.iter().position(|&p| p == (k, s))?;
+            let i = runs.iter().position(|(kk, ss, _)| (*kk, *ss) == (k, s))?;
             let first = alike.get(i).copied().unwrap_or(i);
             let tallies = match tallied.entry(first) {
                 Entry::Occupied(e) => e.into_mut(),

@@ -171,6 +171,15 @@ pub fn first_alike(pol: &BudgetPolicies, pairs: &[(usize, BudgetStrategy)]) -> V
         .collect()
 }
 
+/// [`first_alike`] of the (budget, strategy) pairs `runs` holds ([`stream_all`]'s).
+pub(crate) fn first_alike_runs(
+    pol: &BudgetPolicies,
+    runs: &[(usize, BudgetStrategy, Vec<BudgetRun>)],
+) -> Vec<usize> {
+    let pairs: Vec<(usize, BudgetStrategy)> = runs.iter().map(|(k, s, _)| (*k, *s)).collect();
+    first_alike(pol, &pairs)
+}
+
 /// Who decides, frame by frame.
 enum Brain<'a> {
     /// The runtime's scheduler over a bundle with the budget tables, and the table

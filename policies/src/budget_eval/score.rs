@@ -137,8 +137,7 @@ pub fn budget_scores(
 ) -> Vec<BudgetScore> {
     let groups = scenario_groups(videos);
     // runs of equal behaviour are equal (`stream_all`): each is scored once
-    let pairs: Vec<(usize, BudgetStrategy)> = runs.iter().map(|(k, s, _)| (*k, *s)).collect();
-    let alike = super::first_alike(pol, &pairs);
+    let alike = super::first_alike_runs(pol, runs);
     let mut scored: std::collections::HashMap<(usize, &str), Scored> =
         std::collections::HashMap::new();
     let mut out = Vec::new();
