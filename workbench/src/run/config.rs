@@ -457,6 +457,12 @@ impl RunConfig {
                 m.entry(key).or_insert(Value::Null);
             }
         }
+        // a generator's JSON form leaves an unset pace out (its hash stays the same)
+        for set in ["/data", "/heldout", "/tuning"] {
+            if let Some(Value::Object(m)) = merged.pointer_mut(set) {
+                m.entry("pace_frames").or_insert(Value::from(0u32));
+            }
+        }
         merge(&mut merged, &user, "").with_context(|| path.display().to_string())?;
         let cfg = from_sections(&merged).with_context(|| path.display().to_string())?;
         cfg.check(path)?;
@@ -739,6 +745,39 @@ mod tests {
         assert_eq!(cfg.flights.width, quick.flights.width);
     }
 
+    /// `pace_frames` is left out of a generator config's JSON form when unset, so no
+    /// profile carries it; a run config may still set it in every generated set.
+    #[test]
+    fn a_run_config_may_pace_its_generated_videos() {
+        let cfg = load(
+            "[tuning]\nframes_per_video = 240\npace_frames = 60\n\
+             [heldout]\nframes_per_video = 240\npace_frames = 80\n\
+             [data]\npace_frames = 30\n",
+        )
+        .unwrap();
+        assert_eq!(
+            (
+                cfg.tuning.pace_frames,
+                cfg.heldout.pace_frames,
+                cfg.data.pace_frames
+            ),
+            (60, 80, 30)
+        );
+        assert_eq!(cfg.tuning.frames_per_video, 240);
+        let unset = load("[tuning]\nframes_per_video = 240\n").unwrap();
+        assert_eq!(
+            (
+                unset.tuning.pace_frames,
+                unset.heldout.pace_frames,
+                unset.data.pace_frames
+            ),
+            (0, 0, 0)
+        );
+        // still unknown where no generator reads it
+        let e = load_err("[budget]\npace_frames = 60\n");
+        assert!(e.contains("budget.pace_frames"), "{e}");
+    }
+
     #[test]
     fn bad_configs_name_the_key_and_what_is_allowed() {
         let e = load_err("[detector.train]\nepochz = 3\n");
@@ -847,6 +886,42 @@ mod tests {
             .find(|v| v.name == "ch50")
             .unwrap();
         assert_eq!((ch50.steps, cfg.compress.finetune.frames), (Some(1000), 0));
+    }
+
+    #[test]
+    fn the_shipped_slow_flight_config_changes_only_the_videos_the_budget_tables_meet() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/slow-flight.toml");
+        let cfg = RunConfig::load(Some(&path), Profile::Default).unwrap();
+        let default = RunConfig::profile(Profile::Default).unwrap();
+        // every stage before the budget stage hashes the same sections, so a copied
+        // default run skips them
+        assert_eq!(cfg.data, default.data);
+        assert_eq!(cfg.detector, default.detector);
+        assert_eq!(cfg.compress, default.compress);
+        assert_eq!(cfg.pareto, default.pareto);
+        assert_eq!(cfg.replay, default.replay);
+        assert_eq!(cfg.policy, default.policy);
+        assert_eq!(cfg.evaluation, default.evaluation);
+        assert_eq!(cfg.budget, default.budget);
+        assert_eq!(cfg.flights, default.flights);
+        // long, unpaced videos of the same mixes (a slower flight), new seeds
+        for (set, was) in [
+            (&cfg.tuning, &default.tuning),
+            (&cfg.heldout, &default.heldout),
+        ] {
+            assert_eq!(set.frames_per_video, 4 * was.frames_per_video);
+            assert_eq!(set.pace_frames, 0);
+            assert_eq!((&set.clutter, &set.light), (&was.clutter, &was.light));
+            assert_eq!(set.min_sign_px, was.min_sign_px);
+            let tests = set.clutter.len() * set.light.len() * set.test_per_combo as usize;
+            assert_eq!(tests, 24);
+        }
+        // seeds of their own: neither the training data's nor the default run's sets
+        let seeds = [cfg.tuning.seed, cfg.heldout.seed];
+        for s in seeds {
+            assert!(![cfg.data.seed, default.tuning.seed, default.heldout.seed].contains(&s));
+        }
+        assert_ne!(seeds[0], seeds[1]);
     }
 
     #[test]
