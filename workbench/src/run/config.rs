@@ -451,16 +451,18 @@ impl RunConfig {
             })?,
         };
         let mut merged = serde_json::to_value(RunConfig::profile(profile)?)?;
-        // keys no profile sets, which a config file may: present, as unset
-        for (parent, key) in [("", "import"), ("/detector/model", "input_size")] {
+        // keys no profile's JSON form holds, which a config file may set: present, as
+        // unset (a generator leaves an unset pace out, so its hash stays the same)
+        let unset = [
+            ("", "import", Value::Null),
+            ("/detector/model", "input_size", Value::Null),
+            ("/data", "pace_frames", Value::from(0u32)),
+            ("/heldout", "pace_frames", Value::from(0u32)),
+            ("/tuning", "pace_frames", Value::from(0u32)),
+        ];
+        for (parent, key, value) in unset {
             if let Some(Value::Object(m)) = merged.pointer_mut(parent) {
-                m.entry(key).or_insert(Value::Null);
-            }
-        }
-        // a generator's JSON form leaves an unset pace out (its hash stays the same)
-        for set in ["/data", "/heldout", "/tuning"] {
-            if let Some(Value::Object(m)) = merged.pointer_mut(set) {
-                m.entry("pace_frames").or_insert(Value::from(0u32));
+                m.entry(key).or_insert(value);
             }
         }
         merge(&mut merged, &user, "").with_context(|| path.display().to_string())?;
