@@ -453,13 +453,14 @@ impl RunConfig {
         let mut merged = serde_json::to_value(RunConfig::profile(profile)?)?;
         // keys no profile's JSON form holds, which a config file may set: present, as
         // unset (a generator leaves an unset pace out, so its hash stays the same)
+        let paces =
+            ["/data", "/heldout", "/tuning"].map(|set| (set, "pace_frames", Value::from(0u32)));
         let unset = [
             ("", "import", Value::Null),
             ("/detector/model", "input_size", Value::Null),
-            ("/data", "pace_frames", Value::from(0u32)),
-            ("/heldout", "pace_frames", Value::from(0u32)),
-            ("/tuning", "pace_frames", Value::from(0u32)),
-        ];
+        ]
+        .into_iter()
+        .chain(paces);
         for (parent, key, value) in unset {
             if let Some(Value::Object(m)) = merged.pointer_mut(parent) {
                 m.entry(key).or_insert(value);
