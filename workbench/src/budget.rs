@@ -314,7 +314,7 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
     }
     for (b, t) in cfg.budgets_ms.iter().zip(&traces) {
         println!(
-            "budget {b} ms on the tuning clock ({} videos): learnt table sAP@0.5 {:.1}, best fixed schedule {:.1}, best untracked schedule (static) {:.1}, hindsight bound {:.1}; started from {}, {} move(s) kept over {} tables in {} sweep(s) (at most {}): {:.1} (halves {:.1} / {:.1}), {:.2} device ms/frame",
+            "budget {b} ms on the tuning clock ({} videos): learnt table sAP@0.5 {:.1}, best fixed schedule {:.1}, best untracked schedule (static) {:.1}, hindsight bound {:.1}; started from {}, {} move(s) made over {} tables in {} sweep(s) (at most {}){}: {:.1} (halves {:.1} / {:.1}), {:.2} device ms/frame",
             tuning_videos,
             100.0 * t.learnt_sap50,
             100.0 * t.best_fixed_sap50,
@@ -325,6 +325,17 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
             t.tables,
             t.sweeps,
             cfg.search_rounds,
+            match (t.gain_low, t.kept_start) {
+                (Some(low), true) => format!(
+                    ", not kept: their gain's low end over resampled tuning videos is {:+.1} points, so the start stays",
+                    100.0 * low
+                ),
+                (Some(low), false) => format!(
+                    ", kept: their gain's low end over resampled tuning videos is {:+.1} points",
+                    100.0 * low
+                ),
+                (None, _) => String::new(),
+            },
             100.0 * t.sap50,
             100.0 * t.halves_sap50[0],
             100.0 * t.halves_sap50[1],

@@ -147,6 +147,14 @@ pub struct BudgetConfig {
     pub search_min_gain: f64,
     /// What one move of the search sets ([`SearchLevel`]).
     pub search_level: SearchLevel,
+    /// How sure the search must be that its moves pay, in [0.5, 1), or 0: the table
+    /// its moves reach replaces its start (the learnt table or a fixed schedule) only
+    /// when it streams better than the start in at least this share of paired
+    /// resamples of the tuning videos (the `1 − search_confidence` quantile of its
+    /// sAP@0.5 gain over them is above 0; [`crate::budget_eval::search_tables`]).
+    /// Moves that each held on both halves can still add up to a gain a few videos
+    /// make. 0: the moves are kept whenever they were made.
+    pub search_confidence: f64,
     /// Streaming AP scores each frame against the latest output moved at its boxes'
     /// velocities to that frame (the runtime's [`frugal_runtime::Forecaster`], fed
     /// every output in processing order), as a drone that forecasts what it shows
@@ -254,6 +262,7 @@ impl Default for BudgetConfig {
             search_rounds: 16,
             search_min_gain: 0.0,
             search_level: SearchLevel::Content,
+            search_confidence: 0.9,
             forecast: true,
             forecast_alpha: frugal_runtime::ForecastParams::DEFAULT.alpha,
             burst: 1.5,
@@ -430,6 +439,9 @@ impl BudgetConfig {
         }
         if !(self.search_min_gain.is_finite() && self.search_min_gain >= 0.0) {
             return bad("search_min_gain", "must be finite and >= 0");
+        }
+        if !(self.search_confidence == 0.0 || (0.5..1.0).contains(&self.search_confidence)) {
+            return bad("search_confidence", "must be 0 or in [0.5, 1)");
         }
         if !(self.switch_cost.is_finite() && self.switch_cost >= 0.0 && self.smoothing >= 0.0) {
             return bad(

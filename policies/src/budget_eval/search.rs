@@ -42,7 +42,12 @@
 //! [`BudgetConfig::search_min_gain`] and lowers it on neither half of them (videos
 //! alternately assigned, in id order): a change that only one half of the videos likes
 //! is noise as far as the other half can tell. With a single tuning video there is no
-//! other half, and the search keeps its start. A move sets one action for every state
+//! other half, and the search keeps its start. Moves that each held on both halves can
+//! still add up to a gain that a few videos make, so the table they reach replaces the
+//! start only when it streams better than the start in at least
+//! [`BudgetConfig::search_confidence`] of paired resamples of the tuning videos (the
+//! draws of the margins' intervals, module `budget_eval::interval`); otherwise the start
+//! is kept ([`SearchTrace::kept_start`]). A move sets one action for every state
 //! of one content state ([`crate::budget::SearchLevel::Content`], 27 groups: a
 //! behaviour per kind of scene, whatever the confidence and current variant); also for
 //! every state of one content state and confidence bucket
@@ -52,6 +57,7 @@
 //! tuning clock runs are tried, most looked-up first, for at most
 //! [`BudgetConfig::search_rounds`] sweeps.
 
+use super::interval::{RESAMPLES, draws, intervals_of};
 use super::score::{Tally, ms_per_frame, pooled_sap50, score_runs};
 use super::{BudgetRun, BudgetStrategy, stream_strategy};
 use crate::TrainedPolicy;
@@ -124,6 +130,17 @@ pub struct SearchTrace {
     /// Moves the search kept after the start ([`crate::budget::SearchLevel`]: one
     /// content state's action, or one state's).
     pub changes: usize,
+    /// With moves made: the `1 − search_confidence` quantile (the 10th percentile at
+    /// 0.9; the 5th when it is 0) of their table's sAP@0.5 gain over the start's,
+    /// across paired resamples of the tuning videos ([`BudgetConfig::search_confidence`]).
+    /// `None` without moves, and in policies searched before it was kept.
+    #[serde(default)]
+    pub gain_low: Option<f64>,
+    /// The moves' gain did not hold (`gain_low` ≤ 0 with a `search_confidence`): the
+    /// table kept is the start, and `sap50`, `halves_sap50` and `device_ms_per_frame`
+    /// are the start's.
+    #[serde(default)]
+    pub kept_start: bool,
     /// Tables streamed.
     pub tables: usize,
     /// Sweeps over the groups the search ran, the last one included: a sweep that keeps
@@ -441,11 +458,7 @@ pub fn search_tables(
             // judged without the keeper as they run
             let bare_full = bare.as_mut().map(|b| full(b, &table)).transpose()?;
             let (fixed_runs, fixed_fig) = bare_full.as_ref().map_or((&runs, &fig), |(r, f)| (r, f));
-            for (t, rs) in tallies.iter_mut().zip(fixed_runs) {
-                let mut pooled = Tally::default();
-                for r in rs {
-                    pooled.add(&r.tally);
-                }
+            for (t, pooled) in tallies.iter_mut().zip(per_video(fixed_runs)) {
                 t.push(pooled);
             }
             if tracked.contains(&a) {
@@ -470,6 +483,7 @@ pub fn search_tables(
         let (_, bound) = super::hindsight::bound(clock.classes, &tallies, &every, &starts, budget);
         let (start, mut table, mut runs, mut fig) = best;
         let start_ms_per_frame = fig.ms_per_frame;
+        let at_start = (table.clone(), runs.clone(), fig.clone());
         let mut changes = 0usize;
         let mut sweeps = 0u32;
         let groups = move_groups(cfg.search_level, states, v_n);
@@ -548,6 +562,21 @@ pub fn search_tables(
                 break;
             }
         }
+        // the moves replace the start only when their gain holds over resamples of
+        // the tuning videos
+        let gain_low = (changes > 0).then(|| {
+            gain_low(
+                clock.classes,
+                &per_video(&runs),
+                &per_video(&at_start.1),
+                cfg.search_confidence,
+            )
+        });
+        let kept_start =
+            cfg.search_confidence > 0.0 && gain_low.is_some_and(|low| low <= 0.0 || low.is_nan());
+        if kept_start {
+            (table, runs, fig) = at_start;
+        }
         // the table kept, streamed in full: its evaluation figures
         set(policy, &table);
         let f1 = clock.offline_f1(policy, k, cfg.clock_runs)?;
@@ -587,6 +616,8 @@ pub fn search_tables(
             halves_sap50: fig.halves,
             device_ms_per_frame: fig.ms_per_frame,
             changes,
+            gain_low,
+            kept_start,
             tables,
             sweeps,
         });
@@ -597,6 +628,36 @@ pub fn search_tables(
         }
     }
     Ok(traces)
+}
+
+/// Per video, the tally of its clock runs pooled.
+fn per_video(runs: &Runs) -> Vec<Tally> {
+    runs.iter()
+        .map(|rs| {
+            let mut t = Tally::default();
+            for r in rs {
+                t.add(&r.tally);
+            }
+            t
+        })
+        .collect()
+}
+
+/// The `1 − confidence` quantile (the 5th percentile when `confidence` is 0) of the
+/// sAP@0.5 gain of the per-video tallies `ours` over `start`'s across
+/// [`RESAMPLES`] paired resamples of the videos.
+fn gain_low(classes: usize, ours: &[Tally], start: &[Tally], confidence: f64) -> f64 {
+    let confidence = if confidence > 0.0 { confidence } else { 0.95 };
+    let draws = draws(ours.len(), RESAMPLES);
+    // the central 2c − 1 of the resampled gains starts at their 1 − c quantile
+    let versus = intervals_of(
+        classes,
+        ours,
+        &[(String::from("start"), start.to_vec())],
+        &draws,
+        2.0 * confidence - 1.0,
+    );
+    versus.first().map_or(f64::NAN, |(_, [low, _])| *low)
 }
 
 /// The groups of states one move of the search sets to one action, at `level`, for a
@@ -712,6 +773,47 @@ mod tests {
         all.sort_unstable();
         assert_eq!(all, (0..states).collect::<Vec<_>>());
         assert_eq!(move_groups(SearchLevel::State, states, v_n).len(), states);
+    }
+
+    /// Per video, one class with 10 truth boxes of which `hits` are found (score 0.9)
+    /// and nothing else.
+    fn videos(hits: &[usize]) -> Vec<Tally> {
+        hits.iter()
+            .map(|&h| Tally::of_parts(vec![(10, vec![(0.9, true); h])], 0.0, 60))
+            .collect()
+    }
+
+    #[test]
+    fn moves_replace_the_start_only_when_their_gain_holds_over_resampled_videos() {
+        let start = videos(&[7; 20]);
+        // one more box found on every video: every resample gains 0.1
+        let everywhere = videos(&[8; 20]);
+        let gain = pooled_sap50(1, everywhere.iter()) - pooled_sap50(1, start.iter());
+        let low = gain_low(1, &everywhere, &start, 0.9);
+        assert!(low > 0.0 && (low - gain).abs() < 1e-9, "{low} {gain}");
+        // three more on one video alone: a gain overall, none in the resamples that
+        // leave that video out (about a third of them)
+        let mut one = vec![7; 20];
+        one[3] = 10;
+        let one = videos(&one);
+        let gain = pooled_sap50(1, one.iter()) - pooled_sap50(1, start.iter());
+        assert!(gain > 0.0, "{gain}");
+        let low = gain_low(1, &one, &start, 0.9);
+        assert!(low.abs() < 1e-12, "{low}");
+        // asked to be no surer than the share of resamples it gains in (about two
+        // thirds), it holds
+        assert!(gain_low(1, &one, &start, 0.5) > 0.0);
+        // a gain on most videos and a larger loss on a few: positive overall, not sure
+        let mut mixed = vec![8; 20];
+        for h in &mut mixed[..4] {
+            *h = 4;
+        }
+        let mixed = videos(&mixed);
+        let gain = pooled_sap50(1, mixed.iter()) - pooled_sap50(1, start.iter());
+        assert!(gain > 0.0, "{gain}");
+        assert!(gain_low(1, &mixed, &start, 0.9) < 0.0);
+        // 0 (moves kept whenever made) records the 5th percentile
+        assert!(gain_low(1, &mixed, &start, 0.0) <= gain_low(1, &mixed, &start, 0.9));
     }
 
     #[test]

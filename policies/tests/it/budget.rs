@@ -1186,6 +1186,34 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
         }
         assert_eq!(t0.start, t.start);
         assert!(t.sap50 >= t0.sap50 - 1e-12);
+        // moves are judged over resampled tuning videos; the start stays when their
+        // gain does not hold there, figures and all
+        assert_eq!(t.gain_low.is_some(), t.changes > 0, "{t:?}");
+        assert_eq!(t.kept_start, t.gain_low.is_some_and(|l| l <= 0.0), "{t:?}");
+        if t.kept_start || t.changes == 0 {
+            assert_eq!(t.sap50, t0.sap50, "{t:?}");
+            assert_eq!(t.device_ms_per_frame, t0.device_ms_per_frame, "{t:?}");
+        }
+    }
+    // moves kept whenever made: the same search, the same moves, and where the start
+    // stayed above, the moves' own table
+    let mut eager = policy.clone();
+    let mut pe = pol.clone();
+    pe.config.search_rounds = 2;
+    pe.config.search_confidence = 0.0;
+    eager.budget = Some(pe);
+    let traces_e = search_tables(&sets, COST, &mut eager, thresholds, 0.5, &|| {}).unwrap();
+    for ((te, t), t0) in traces_e.iter().zip(&traces).zip(&traces0) {
+        assert!(!te.kept_start, "{te:?}");
+        assert_eq!(
+            (te.changes, te.tables, te.gain_low),
+            (t.changes, t.tables, t.gain_low)
+        );
+        if t.kept_start {
+            assert!(te.sap50 > t0.sap50, "{te:?}");
+        } else {
+            assert_eq!(te.sap50, t.sap50, "{te:?}");
+        }
     }
     // one state per move: the same guarantees
     let mut fine = policy.clone();
