@@ -127,8 +127,9 @@ pub struct SearchTrace {
     pub halves_sap50: [f64; 2],
     /// Device ms per frame of the table kept on the tuning clock runs.
     pub device_ms_per_frame: f64,
-    /// Moves the search kept after the start ([`crate::budget::SearchLevel`]: one
-    /// content state's action, or one state's).
+    /// Moves the search made after the start, each one that held on both halves
+    /// ([`crate::budget::SearchLevel`]: one content state's action, or one state's);
+    /// [`SearchTrace::kept_start`] says whether the table they reached was kept.
     pub changes: usize,
     /// With moves made: the `1 − search_confidence` quantile (the 10th percentile at
     /// 0.9; the 5th when it is 0) of their table's sAP@0.5 gain over the start's,
