@@ -1305,6 +1305,31 @@ fn a_period_list_must_start_at_one_and_ascend() {
     }
 }
 
+/// The search's confidence is 0 (moves kept whenever made) or a share in [0.5, 1); any
+/// other value names the file and the key.
+#[test]
+fn a_search_confidence_outside_its_range_is_refused() {
+    let path = std::path::Path::new("budget.toml");
+    for ok in [0.0, 0.5, 0.9, 0.99] {
+        let cfg = BudgetConfig {
+            search_confidence: ok,
+            ..BudgetConfig::default()
+        };
+        cfg.check(path).unwrap();
+    }
+    for bad in [0.3, 1.0, -0.9, f64::NAN, f64::INFINITY] {
+        let cfg = BudgetConfig {
+            search_confidence: bad,
+            ..BudgetConfig::default()
+        };
+        let e = cfg.check(path).unwrap_err().to_string();
+        assert!(
+            e.contains("budget.toml") && e.contains("search_confidence"),
+            "{bad}: {e}"
+        );
+    }
+}
+
 /// The bundle records the clock its tables count: 30 fps for videos without times of
 /// their own, the median frame interval of training videos that carry their times.
 #[test]
