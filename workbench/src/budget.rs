@@ -325,17 +325,17 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
             t.tables,
             t.sweeps,
             cfg.search_rounds,
-            match (t.gain_low, t.kept_start) {
-                (Some(low), true) => format!(
-                    ", not kept: their gain's low end over resampled tuning videos is {:+.1} points, so the start stays",
+            t.gain_low.map_or(String::new(), |low| {
+                let (verdict, then) = if t.kept_start {
+                    ("not kept", ", so the start stays")
+                } else {
+                    ("kept", "")
+                };
+                format!(
+                    ", {verdict}: their gain's low end over resampled tuning videos is {:+.1} points{then}",
                     100.0 * low
-                ),
-                (Some(low), false) => format!(
-                    ", kept: their gain's low end over resampled tuning videos is {:+.1} points",
-                    100.0 * low
-                ),
-                (None, _) => String::new(),
-            },
+                )
+            }),
             100.0 * t.sap50,
             100.0 * t.halves_sap50[0],
             100.0 * t.halves_sap50[1],

@@ -76,10 +76,10 @@ fn quantile(xs: &[f64], q: f64) -> f64 {
 
 /// Per baseline (name, per-video tallies), the central `level` of the policy's margin
 /// over it across `draws` (each a list of indices into the per-video tallies).
-pub(super) fn intervals_of(
+pub(super) fn intervals_of<B: AsRef<[Tally]> + Sync>(
     classes: usize,
     policy: &[Tally],
-    baselines: &[(String, Vec<Tally>)],
+    baselines: &[(String, B)],
     draws: &[Vec<usize>],
     level: f64,
 ) -> Vec<(String, [f64; 2])> {
@@ -91,7 +91,10 @@ pub(super) fn intervals_of(
         .par_iter()
         .map(|d| {
             let ours = sap(policy, d);
-            baselines.iter().map(|(_, t)| ours - sap(t, d)).collect()
+            baselines
+                .iter()
+                .map(|(_, t)| ours - sap(t.as_ref(), d))
+                .collect()
         })
         .collect();
     let tail = (1.0 - level) / 2.0;

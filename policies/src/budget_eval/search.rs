@@ -654,7 +654,7 @@ fn gain_low(classes: usize, ours: &[Tally], start: &[Tally], confidence: f64) ->
     let versus = intervals_of(
         classes,
         ours,
-        &[(String::from("start"), start.to_vec())],
+        &[(String::from("start"), start)],
         &draws,
         2.0 * confidence - 1.0,
     );

@@ -1199,7 +1199,6 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
     // stayed above, the moves' own table
     let mut eager = policy.clone();
     let mut pe = pol.clone();
-    pe.config.search_rounds = 2;
     pe.config.search_confidence = 0.0;
     eager.budget = Some(pe);
     let traces_e = search_tables(&sets, COST, &mut eager, thresholds, 0.5, &|| {}).unwrap();
