@@ -1,5 +1,6 @@
-//! The README's figures are the published run's: `frugal figures check` passes on the
-//! repository as committed, and fails, naming the line, on a figure typed by hand.
+//! The README's figures, and those of the guide page it sends readers to for the
+//! budget policy's standing, are the published run's: `frugal figures check` passes on
+//! the repository as committed, and fails, naming the line, on a figure typed by hand.
 use super::{frugal, p};
 use std::path::{Path, PathBuf};
 
@@ -15,13 +16,26 @@ fn every_figure_the_readme_quotes_is_the_published_runs() {
     let root = root();
     let figures = root.join("docs/results/figures.json");
     let readme = root.join("README.md");
-    frugal(&["figures", "check", "--figures", p(&figures), p(&readme)])
-        .unwrap_or_else(|e| panic!("{e}"));
+    let standing = root.join("docs/guide/where-the-policy-stands.md");
+    frugal(&[
+        "figures",
+        "check",
+        "--figures",
+        p(&figures),
+        p(&readme),
+        p(&standing),
+    ])
+    .unwrap_or_else(|e| panic!("{e}"));
     // the check reads every quoted figure: the README quotes some
     let text = std::fs::read_to_string(&readme).unwrap();
     assert!(
         text.matches("figures.json#").count() >= 20,
         "the README quotes fewer than 20 figures"
+    );
+    let text = std::fs::read_to_string(&standing).unwrap();
+    assert!(
+        text.matches("figures.json#").count() >= 10,
+        "the standing guide quotes fewer than 10 figures"
     );
 }
 
