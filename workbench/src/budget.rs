@@ -326,13 +326,26 @@ pub fn run(files: &Files<'_>, eval: &EvalConfig) -> anyhow::Result<()> {
             t.sweeps,
             cfg.search_rounds,
             t.gain_low.map_or(String::new(), |low| {
-                let (verdict, then) = if t.kept_start {
-                    ("not kept", ", so the start stays")
-                } else {
+                let guard_kept = !t.kept_start || t.crossfit.is_some();
+                let (verdict, then) = if guard_kept {
                     ("kept", "")
+                } else {
+                    ("not kept", ", so the start stays")
                 };
+                let across = t.crossfit.as_ref().map_or(String::new(), |c| {
+                    let (verdict, then) = if c.holds() {
+                        ("hold", "")
+                    } else {
+                        ("do not hold", ", so the start stays")
+                    };
+                    format!(
+                        "; across halves they {verdict}: searched on one half, {:+.1} / {:+.1} points on the other{then}",
+                        100.0 * c.gains[0],
+                        100.0 * c.gains[1]
+                    )
+                });
                 format!(
-                    ", {verdict}: their gain's low end over resampled tuning videos is {:+.1} points{then}",
+                    ", {verdict}: their gain's low end over resampled tuning videos is {:+.1} points{then}{across}",
                     100.0 * low
                 )
             }),

@@ -155,6 +155,15 @@ pub struct BudgetConfig {
     /// Moves that each held on both halves can still add up to a gain a few videos
     /// make. 0: the moves are kept whenever they were made.
     pub search_confidence: f64,
+    /// Whether the search's moves must also hold across halves of the tuning videos:
+    /// the search is run again from the same start on each half alone, and the moves
+    /// are shipped only when neither half's table loses sAP@0.5 on the other half and
+    /// together they gain ([`crate::budget_eval::CrossFit`]). The resampling check of
+    /// [`BudgetConfig::search_confidence`] resamples the videos the moves were chosen
+    /// on, so it cannot see that the moves were chosen to fit them; a half that did
+    /// not choose them can. With fewer than four tuning videos a half cannot move and
+    /// the start is kept. About one more search's time.
+    pub search_crossfit: bool,
     /// Streaming AP scores each frame against the latest output moved at its boxes'
     /// velocities to that frame (the runtime's [`frugal_runtime::Forecaster`], fed
     /// every output in processing order), as a drone that forecasts what it shows
@@ -263,6 +272,7 @@ impl Default for BudgetConfig {
             search_min_gain: 0.0,
             search_level: SearchLevel::Content,
             search_confidence: 0.9,
+            search_crossfit: false,
             forecast: true,
             forecast_alpha: frugal_runtime::ForecastParams::DEFAULT.alpha,
             burst: 1.5,

@@ -42,7 +42,7 @@ pub use interval::{LEVEL, MarginInterval, RESAMPLES, add_intervals};
 pub use score::{
     BudgetScore, Margin, budget_csv, budget_margins, budget_scores, budget_table, plot_budget,
 };
-pub use search::{MIN_TUNING_VIDEOS, SearchTrace, TuneSet, search_tables};
+pub use search::{CrossFit, MIN_TUNING_VIDEOS, SearchTrace, TuneSet, search_tables};
 
 use score::Tally;
 

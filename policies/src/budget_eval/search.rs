@@ -47,10 +47,18 @@
 //! start only when it streams better than the start in at least
 //! [`BudgetConfig::search_confidence`] of paired resamples of the tuning videos (the
 //! draws of the margins' intervals, module `budget_eval::interval`); otherwise the start
-//! is kept ([`SearchTrace::kept_start`]). A move sets one action for every state
-//! of one content state ([`crate::budget::SearchLevel::Content`], 27 groups: a
-//! behaviour per kind of scene, whatever the confidence and current variant); also for
-//! every state of one content state and confidence bucket
+//! is kept ([`SearchTrace::kept_start`]). That check resamples the very videos the
+//! moves were chosen on, so it cannot see that they were chosen to fit them: on one
+//! run its moves at 33 ms held at levels up to 0.99 and lost out of sample. With
+//! [`BudgetConfig::search_crossfit`] the moves must also hold across halves: the search
+//! is run again from the same start on each half of the tuning videos alone, the table
+//! it keeps is scored on the other half, and the moves ship only when neither half's
+//! table loses there and together they gain ([`CrossFit`]).
+//!
+//! A move sets one action for every state of one content state
+//! ([`crate::budget::SearchLevel::Content`], 27 groups: a behaviour per kind of scene,
+//! whatever the confidence and current variant); also for every state of one content
+//! state and confidence bucket
 //! ([`crate::budget::SearchLevel::Confidence`], 27 more groups per bucket); or for one
 //! state alone ([`crate::budget::SearchLevel::State`]), which fitted the tuning videos
 //! better and new videos worse. Only groups the current table looks up on the
@@ -142,6 +150,12 @@ pub struct SearchTrace {
     /// are the start's.
     #[serde(default)]
     pub kept_start: bool,
+    /// The moves checked across halves of the tuning videos
+    /// ([`BudgetConfig::search_crossfit`]): run when moves were made and their gain held
+    /// over resamples; when it does not hold ([`CrossFit::holds`]) the start is kept
+    /// ([`SearchTrace::kept_start`]). `None` when not run.
+    #[serde(default)]
+    pub crossfit: Option<CrossFit>,
     /// Tables streamed.
     pub tables: usize,
     /// Sweeps over the groups the search ran, the last one included: a sweep that keeps
@@ -291,11 +305,17 @@ impl Clock<'_> {
         )
     }
 
-    fn figures(&self, runs: &Runs) -> Figures {
+    /// The figures of `runs` over the videos of `part`, halves and all.
+    fn figures(&self, runs: &Runs, part: &Part) -> Figures {
         Figures {
-            sap50: self.sap50(runs, |_| true),
-            halves: [0, 1].map(|h| self.sap50(runs, move |i| i % 2 == h)),
-            ms_per_frame: ms_per_frame(runs.iter().flatten().map(|r| &r.tally)),
+            sap50: self.sap50(runs, |i| part.has(i)),
+            halves: [0, 1].map(|h| self.sap50(runs, move |i| part.half[i] == Some(h))),
+            ms_per_frame: ms_per_frame(
+                runs.iter()
+                    .enumerate()
+                    .filter(|(i, _)| part.has(*i))
+                    .flat_map(|(_, rs)| rs.iter().map(|r| &r.tally)),
+            ),
         }
     }
 
@@ -422,7 +442,7 @@ pub fn search_tables(
             tables += 1;
             progress();
             let runs = clock.all(policy, k, cfg.clock_runs)?;
-            let fig = clock.figures(&runs);
+            let fig = clock.figures(&runs, &Part::all(clock.videos.len()));
             Ok((runs, fig))
         };
         let (learnt_runs, learnt_fig) = full(policy, &learnt)?;
@@ -482,101 +502,40 @@ pub fn search_tables(
         .collect();
         let every: Vec<usize> = (0..choices.len()).collect();
         let (_, bound) = super::hindsight::bound(clock.classes, &tallies, &every, &starts, budget);
-        let (start, mut table, mut runs, mut fig) = best;
-        let start_ms_per_frame = fig.ms_per_frame;
-        let at_start = (table.clone(), runs.clone(), fig.clone());
-        let mut changes = 0usize;
-        let mut sweeps = 0u32;
-        let groups = move_groups(cfg.search_level, states, v_n);
-        let rounds = if clock.videos.len() >= MIN_TUNING_VIDEOS {
-            cfg.search_rounds
-        } else {
-            0
+        let (start, start_table, start_runs, start_fig) = best;
+        let start_ms_per_frame = start_fig.ms_per_frame;
+        let all = Part::all(clock.videos.len());
+        let moves = Moves {
+            clock: &clock,
+            k,
+            budget,
+            choices: &choices,
+            groups: move_groups(cfg.search_level, states, v_n),
+            rounds: cfg.search_rounds,
+            min_gain: cfg.search_min_gain,
+            confidence: cfg.search_confidence,
+            clock_runs: cfg.clock_runs,
         };
-        for _ in 0..rounds {
-            sweeps += 1;
-            let mut visits = vec![0u64; states];
-            for r in runs.iter().flatten() {
-                for &(s, n) in &r.queried {
-                    if let Some(v) = visits.get_mut(s as usize) {
-                        *v += u64::from(n);
-                    }
-                }
-            }
-            let group_visits: Vec<u64> = groups
-                .iter()
-                .map(|g| g.iter().map(|&s| visits[s]).sum())
-                .collect();
-            let mut order: Vec<usize> =
-                (0..groups.len()).filter(|&g| group_visits[g] > 0).collect();
-            order.sort_by_key(|&g| std::cmp::Reverse(group_visits[g]));
-            let mut changed = false;
-            for g in order {
-                let group = &groups[g];
-                // only the runs that look one of the group's states up can change
-                let looking_up = |runs: &Runs| -> Vec<Vec<u32>> {
-                    runs.iter()
-                        .map(|rs| {
-                            (0..rs.len() as u32)
-                                .filter(|&c| {
-                                    group.iter().any(|&s| rs[c as usize].queries(s as u32))
-                                })
-                                .collect()
-                        })
-                        .collect()
-                };
-                let mut which = looking_up(&runs);
-                for &a in &choices {
-                    if which.iter().all(Vec::is_empty) {
-                        break; // no longer visited since an earlier change
-                    }
-                    if group.iter().all(|&s| usize::from(table[s]) == a) {
-                        continue;
-                    }
-                    let mut cand = table.clone();
-                    for &s in group {
-                        cand[s] = a as u16;
-                    }
-                    set(policy, &cand);
-                    tables += 1;
-                    progress();
-                    let fresh =
-                        clock.stream(policy, k, &which, |v, arr, r| clock.run_fig(v, arr, &r))?;
-                    let mut cand_runs = runs.clone();
-                    for (i, rs) in fresh.into_iter().enumerate() {
-                        for (c, r) in rs {
-                            cand_runs[i][c as usize] = r;
-                        }
-                    }
-                    let f = clock.figures(&cand_runs);
-                    if pays(&f, &fig, budget, cfg.search_min_gain) {
-                        table = cand;
-                        runs = cand_runs;
-                        fig = f;
-                        changes += 1;
-                        changed = true;
-                        which = looking_up(&runs);
-                    }
-                }
-            }
-            if !changed {
-                break;
-            }
-        }
-        // the moves replace the start only when their gain holds over resamples of
-        // the tuning videos
-        let gain_low = (changes > 0).then(|| {
-            gain_low(
-                clock.classes,
-                &per_video(&runs),
-                &per_video(&at_start.1),
-                cfg.search_confidence,
-            )
-        });
-        let kept_start =
-            cfg.search_confidence > 0.0 && gain_low.is_some_and(|low| low <= 0.0 || low.is_nan());
-        if kept_start {
-            (table, runs, fig) = at_start;
+        let searched = moves.refine(policy, &all, &start_table, &start_runs, progress)?;
+        tables += searched.tables;
+        // the moves are shipped only when a search on either half of the tuning videos,
+        // from the same start, gains on the other half
+        let crossfit = (cfg.search_crossfit && searched.changes > 0 && !searched.kept_start)
+            .then(|| moves.cross_fit(policy, &all, &start_table, &start_runs, progress))
+            .transpose()?;
+        let Refined {
+            mut table,
+            mut runs,
+            mut fig,
+            changes,
+            sweeps,
+            gain_low,
+            mut kept_start,
+            ..
+        } = searched;
+        if crossfit.as_ref().is_some_and(|c| !c.holds()) {
+            kept_start = true;
+            (table, runs, fig) = (start_table, start_runs, start_fig);
         }
         // the table kept, streamed in full: its evaluation figures
         set(policy, &table);
@@ -619,6 +578,7 @@ pub fn search_tables(
             changes,
             gain_low,
             kept_start,
+            crossfit,
             tables,
             sweeps,
         });
@@ -629,6 +589,303 @@ pub fn search_tables(
         }
     }
     Ok(traces)
+}
+
+/// The tuning videos one search sees, and its halves.
+#[derive(Clone, Debug)]
+struct Part {
+    /// Per clock video, its half within the part (they alternate over the part's
+    /// videos in order), or `None` outside it.
+    half: Vec<Option<usize>>,
+}
+
+impl Part {
+    /// All `n` videos, halves alternating in order.
+    fn all(n: usize) -> Part {
+        Part {
+            half: (0..n).map(|i| Some(i % 2)).collect(),
+        }
+    }
+
+    /// Half `h` of this part as a part of its own, its halves alternating over its
+    /// videos in order.
+    fn half(&self, h: usize) -> Part {
+        let mut seen = 0;
+        Part {
+            half: self
+                .half
+                .iter()
+                .map(|x| {
+                    (*x == Some(h)).then(|| {
+                        seen += 1;
+                        (seen - 1) % 2
+                    })
+                })
+                .collect(),
+        }
+    }
+
+    fn has(&self, i: usize) -> bool {
+        self.half.get(i).is_some_and(Option::is_some)
+    }
+
+    fn len(&self) -> usize {
+        self.half.iter().flatten().count()
+    }
+
+    /// Which clock runs of each video to stream: all `clock_runs` of the part's
+    /// videos, none of the others'.
+    fn every_run(&self, clock_runs: u32) -> Vec<Vec<u32>> {
+        self.half
+            .iter()
+            .map(|h| match h {
+                Some(_) => (0..clock_runs).collect(),
+                None => Vec::new(),
+            })
+            .collect()
+    }
+}
+
+/// How one budget's moves are searched: the clock, the budget's actions and the
+/// groups of states a move sets.
+struct Moves<'c, 'a> {
+    clock: &'c Clock<'a>,
+    k: usize,
+    budget: f64,
+    choices: &'c [usize],
+    groups: Vec<Vec<usize>>,
+    rounds: u32,
+    min_gain: f64,
+    confidence: f64,
+    clock_runs: u32,
+}
+
+/// A search's moves from its start, and the table it keeps.
+struct Refined {
+    table: Vec<u16>,
+    /// Every video's runs: the part's with `table`, the others' as they were given.
+    runs: Runs,
+    /// `table`'s figures over the part.
+    fig: Figures,
+    changes: usize,
+    sweeps: u32,
+    tables: usize,
+    gain_low: Option<f64>,
+    kept_start: bool,
+}
+
+/// The moves checked across the halves of the tuning videos: the search run again
+/// from the same start on each half alone ([`crate::budget::BudgetConfig::search_crossfit`]),
+/// its table scored on the other half.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CrossFit {
+    /// sAP@0.5 gain (0–1) over the start, on the other half, of the table the search
+    /// on half 0 (the 1st, 3rd, … tuning video) kept, and of the one the search on
+    /// half 1 kept: 0 where that search kept its start.
+    pub gains: [f64; 2],
+    /// The moves each half's search made.
+    pub changes: [usize; 2],
+    /// Whether each half's search kept its start (no move, or its moves' gain did not
+    /// hold over resamples of its own videos).
+    pub kept_start: [bool; 2],
+    /// Tables streamed for the check.
+    pub tables: usize,
+}
+
+impl CrossFit {
+    /// The moves hold out of sample: neither half's table loses on the other half, and
+    /// together they gain.
+    pub fn holds(&self) -> bool {
+        self.gains.iter().all(|g| *g >= 0.0) && self.gains.iter().sum::<f64>() > 0.0
+    }
+}
+
+impl Moves<'_, '_> {
+    fn set(&self, policy: &mut TrainedPolicy, table: &[u16]) {
+        if let Some(b) = policy.budget.as_mut() {
+            b.policies[self.k].actions = table.to_vec();
+        }
+    }
+
+    /// The search's moves on the videos of `part` from `start` (whose runs are
+    /// `start_runs`): one group of states at a time set to one action while that pays
+    /// on both halves of the part, then the table they reach kept only when its gain
+    /// holds over resamples of the part's videos.
+    fn refine(
+        &self,
+        policy: &mut TrainedPolicy,
+        part: &Part,
+        start: &[u16],
+        start_runs: &Runs,
+        progress: &(dyn Fn() + Sync),
+    ) -> Result<Refined> {
+        let clock = self.clock;
+        let states = start.len();
+        let (mut table, mut runs) = (start.to_vec(), start_runs.clone());
+        let mut fig = clock.figures(&runs, part);
+        let start_fig = fig.clone();
+        let (mut changes, mut sweeps, mut tables) = (0usize, 0u32, 0usize);
+        let rounds = if part.len() >= MIN_TUNING_VIDEOS {
+            self.rounds
+        } else {
+            0
+        };
+        for _ in 0..rounds {
+            sweeps += 1;
+            let mut visits = vec![0u64; states];
+            for (_, rs) in runs.iter().enumerate().filter(|(i, _)| part.has(*i)) {
+                for &(s, n) in rs.iter().flat_map(|r| &r.queried) {
+                    if let Some(v) = visits.get_mut(s as usize) {
+                        *v += u64::from(n);
+                    }
+                }
+            }
+            let group_visits: Vec<u64> = self
+                .groups
+                .iter()
+                .map(|g| g.iter().map(|&s| visits[s]).sum())
+                .collect();
+            let mut order: Vec<usize> = (0..self.groups.len())
+                .filter(|&g| group_visits[g] > 0)
+                .collect();
+            order.sort_by_key(|&g| std::cmp::Reverse(group_visits[g]));
+            let mut changed = false;
+            for g in order {
+                let group = &self.groups[g];
+                // only the part's runs that look one of the group's states up can change
+                let looking_up = |runs: &Runs| -> Vec<Vec<u32>> {
+                    runs.iter()
+                        .enumerate()
+                        .map(|(i, rs)| {
+                            if !part.has(i) {
+                                return Vec::new();
+                            }
+                            (0..rs.len() as u32)
+                                .filter(|&c| {
+                                    group.iter().any(|&s| rs[c as usize].queries(s as u32))
+                                })
+                                .collect()
+                        })
+                        .collect()
+                };
+                let mut which = looking_up(&runs);
+                for &a in self.choices {
+                    if which.iter().all(Vec::is_empty) {
+                        break; // no longer visited since an earlier change
+                    }
+                    if group.iter().all(|&s| usize::from(table[s]) == a) {
+                        continue;
+                    }
+                    let mut cand = table.clone();
+                    for &s in group {
+                        cand[s] = a as u16;
+                    }
+                    self.set(policy, &cand);
+                    tables += 1;
+                    progress();
+                    let fresh = clock.stream(policy, self.k, &which, |v, arr, r| {
+                        clock.run_fig(v, arr, &r)
+                    })?;
+                    let mut cand_runs = runs.clone();
+                    for (i, rs) in fresh.into_iter().enumerate() {
+                        for (c, r) in rs {
+                            cand_runs[i][c as usize] = r;
+                        }
+                    }
+                    let f = clock.figures(&cand_runs, part);
+                    if pays(&f, &fig, self.budget, self.min_gain) {
+                        table = cand;
+                        runs = cand_runs;
+                        fig = f;
+                        changes += 1;
+                        changed = true;
+                        which = looking_up(&runs);
+                    }
+                }
+            }
+            if !changed {
+                break;
+            }
+        }
+        // the moves replace the start only when their gain holds over resamples of
+        // the part's videos
+        let gain_low = (changes > 0).then(|| {
+            let mine = |runs: &Runs| -> Vec<Tally> {
+                per_video(runs)
+                    .into_iter()
+                    .enumerate()
+                    .filter(|(i, _)| part.has(*i))
+                    .map(|(_, t)| t)
+                    .collect()
+            };
+            gain_low(
+                clock.classes,
+                &mine(&runs),
+                &mine(start_runs),
+                self.confidence,
+            )
+        });
+        let kept_start =
+            self.confidence > 0.0 && gain_low.is_some_and(|low| low <= 0.0 || low.is_nan());
+        if kept_start {
+            (table, runs, fig) = (start.to_vec(), start_runs.clone(), start_fig);
+        }
+        Ok(Refined {
+            table,
+            runs,
+            fig,
+            changes,
+            sweeps,
+            tables,
+            gain_low,
+            kept_start,
+        })
+    }
+
+    /// The search run again from `start` on each half of `part` alone, the table it
+    /// keeps scored on the other half against the start ([`CrossFit`]).
+    fn cross_fit(
+        &self,
+        policy: &mut TrainedPolicy,
+        part: &Part,
+        start: &[u16],
+        start_runs: &Runs,
+        progress: &(dyn Fn() + Sync),
+    ) -> Result<CrossFit> {
+        let clock = self.clock;
+        let mut fit = CrossFit {
+            gains: [0.0; 2],
+            changes: [0; 2],
+            kept_start: [true; 2],
+            tables: 0,
+        };
+        for h in 0..2 {
+            let (mine, other) = (part.half(h), part.half(1 - h));
+            let r = self.refine(policy, &mine, start, start_runs, progress)?;
+            fit.tables += r.tables;
+            fit.changes[h] = r.changes;
+            fit.kept_start[h] = r.changes == 0 || r.kept_start;
+            if fit.kept_start[h] {
+                continue;
+            }
+            self.set(policy, &r.table);
+            fit.tables += 1;
+            progress();
+            let which = other.every_run(self.clock_runs);
+            let fresh = clock.stream(policy, self.k, &which, |v, arr, r| {
+                clock.run_fig(v, arr, &r)
+            })?;
+            let mut unseen = start_runs.clone();
+            for (i, rs) in fresh.into_iter().enumerate() {
+                for (c, r) in rs {
+                    unseen[i][c as usize] = r;
+                }
+            }
+            fit.gains[h] =
+                clock.sap50(&unseen, |i| other.has(i)) - clock.sap50(start_runs, |i| other.has(i));
+        }
+        Ok(fit)
+    }
 }
 
 /// Per video, the tally of its clock runs pooled.
@@ -729,6 +986,53 @@ mod tests {
             halves,
             ms_per_frame: ms,
         }
+    }
+
+    #[test]
+    fn a_half_of_the_videos_alternates_its_own_halves_over_its_videos() {
+        let all = Part::all(7);
+        assert_eq!(all.len(), 7);
+        let h0 = all.half(0);
+        let h1 = all.half(1);
+        // videos 0, 2, 4, 6 and 1, 3, 5, halves alternating over each
+        assert_eq!(
+            h0.half,
+            [Some(0), None, Some(1), None, Some(0), None, Some(1)]
+        );
+        assert_eq!(h1.half, [None, Some(0), None, Some(1), None, Some(0), None]);
+        assert_eq!((h0.len(), h1.len()), (4, 3));
+        assert!((0..7).all(|i| h0.has(i) != h1.has(i)));
+        assert!(!all.has(7));
+        assert_eq!(
+            h1.every_run(2),
+            [
+                vec![],
+                vec![0, 1],
+                vec![],
+                vec![0, 1],
+                vec![],
+                vec![0, 1],
+                vec![]
+            ]
+        );
+    }
+
+    #[test]
+    fn moves_hold_across_halves_only_when_neither_loses_and_together_they_gain() {
+        let fit = |gains: [f64; 2]| CrossFit {
+            gains,
+            changes: [1, 1],
+            kept_start: [false, false],
+            tables: 2,
+        };
+        // a run whose 33 ms moves lost on one half while the other half's search kept
+        // its start
+        assert!(!fit([-0.008, 0.0]).holds());
+        assert!(fit([0.004, 0.011]).holds());
+        assert!(fit([0.0, 0.005]).holds());
+        assert!(!fit([0.0, 0.0]).holds());
+        assert!(!fit([0.03, -0.001]).holds());
+        assert!(!fit([f64::NAN, 0.01]).holds());
     }
 
     #[test]

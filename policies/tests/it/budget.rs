@@ -1245,6 +1245,115 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
     }
 }
 
+/// With the cross-fit check on, the search runs again from the same start on each half
+/// of the tuning videos alone and scores its table on the other half; the moves ship
+/// only when neither half's table loses there and together they gain, and otherwise the
+/// start stays, table, figures and all. The search itself is the same with the check on
+/// or off, and the check runs only on moves the resampling check let through.
+#[test]
+fn moves_ship_only_when_searches_on_either_half_gain_on_the_other() {
+    let (log, frames, mut pol) = trained();
+    pol.config.search_level = SearchLevel::State;
+    let thresholds = EvalConfig::default().thresholds();
+    let search = |videos: &[&VideoLog], confidence: f64, crossfit: bool, rounds: u32| {
+        let mut p = pol.clone();
+        p.config.search_confidence = confidence;
+        p.config.search_crossfit = crossfit;
+        p.config.search_rounds = rounds;
+        let (mut policy, _) = bundled(&log, &p);
+        let sets = [TuneSet {
+            log: &log,
+            frames: &frames,
+            videos: videos.to_vec(),
+        }];
+        let calls = std::sync::atomic::AtomicUsize::new(0);
+        let traces = search_tables(&sets, COST, &mut policy, thresholds, 0.5, &|| {
+            calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        })
+        .unwrap();
+        (traces, policy.budget.unwrap(), calls.into_inner())
+    };
+    // on the training and validation videos the moves one half finds do not pay on
+    // the other; with the test videos too they do
+    let train_val: Vec<&VideoLog> = log
+        .split(Split::Train)
+        .chain(log.split(Split::Val))
+        .collect();
+    let every: Vec<&VideoLog> = train_val
+        .iter()
+        .copied()
+        .chain(log.split(Split::Test))
+        .collect();
+    let (mut checked, mut held, mut refused) = (0, 0, 0);
+    for (videos, confidence) in [
+        (&train_val, 0.0),
+        (&train_val, 0.9),
+        (&every, 0.0),
+        (&every, 0.9),
+    ] {
+        let (start, start_pol, _) = search(videos, confidence, false, 0);
+        let (off, off_pol, _) = search(videos, confidence, false, 2);
+        let (on, on_pol, calls) = search(videos, confidence, true, 2);
+        assert_eq!(
+            calls,
+            on.iter()
+                .map(|t| t.tables + t.crossfit.as_ref().map_or(0, |c| c.tables))
+                .sum::<usize>()
+        );
+        for (k, ((t, o), s)) in on.iter().zip(&off).zip(&start).enumerate() {
+            assert_eq!(
+                (&t.start, t.changes, t.tables, t.gain_low),
+                (&o.start, o.changes, o.tables, o.gain_low)
+            );
+            assert!(o.crossfit.is_none(), "{o:?}");
+            assert_eq!(
+                t.crossfit.is_some(),
+                o.changes > 0 && !o.kept_start,
+                "{t:?}"
+            );
+            let Some(c) = &t.crossfit else {
+                assert_eq!((t.kept_start, t.sap50), (o.kept_start, o.sap50));
+                assert_eq!(on_pol.policies[k].actions, off_pol.policies[k].actions);
+                continue;
+            };
+            checked += 1;
+            for h in 0..2 {
+                // a half that kept its start gains nothing; one that moved streamed its
+                // table on the other half
+                if c.kept_start[h] {
+                    assert_eq!(c.gains[h], 0.0, "{c:?}");
+                }
+                assert!(c.kept_start[h] || c.changes[h] > 0, "{c:?}");
+                if confidence == 0.0 {
+                    assert_eq!(c.kept_start[h], c.changes[h] == 0, "{c:?}");
+                }
+            }
+            assert!(c.tables >= c.kept_start.iter().filter(|k| !**k).count());
+            if c.holds() {
+                held += 1;
+                assert!(!t.kept_start, "{t:?}");
+                assert_eq!(
+                    (t.sap50, t.device_ms_per_frame),
+                    (o.sap50, o.device_ms_per_frame)
+                );
+                assert_eq!(on_pol.policies[k].actions, off_pol.policies[k].actions);
+            } else {
+                refused += 1;
+                assert!(t.kept_start, "{t:?}");
+                assert_eq!(
+                    (t.sap50, t.device_ms_per_frame),
+                    (s.sap50, s.device_ms_per_frame)
+                );
+                assert_eq!(on_pol.policies[k].actions, start_pol.policies[k].actions);
+            }
+        }
+    }
+    assert!(
+        checked > 0 && held > 0 && refused > 0,
+        "{checked} checked, {held} held, {refused} refused"
+    );
+}
+
 /// A move must hold on both halves of the tuning videos. With one tuning video there is
 /// no second half to hold it, so the search keeps its start: on a video where moves
 /// pay, one video alone makes none.
