@@ -319,6 +319,24 @@ impl Clock<'_> {
         }
     }
 
+    /// `runs` with the clock runs `which[video]` streamed again with budget `k`'s table.
+    fn again(
+        &self,
+        policy: &TrainedPolicy,
+        k: usize,
+        which: &[Vec<u32>],
+        runs: &Runs,
+    ) -> Result<Runs> {
+        let fresh = self.stream(policy, k, which, |v, arr, r| self.run_fig(v, arr, &r))?;
+        let mut out = runs.clone();
+        for (i, rs) in fresh.into_iter().enumerate() {
+            for (c, r) in rs {
+                out[i][c as usize] = r;
+            }
+        }
+        Ok(out)
+    }
+
     /// Every clock run of every video, streamed with budget `k`'s table.
     fn all(&self, policy: &TrainedPolicy, k: usize, clock_runs: u32) -> Result<Runs> {
         let which = vec![(0..clock_runs).collect::<Vec<u32>>(); self.videos.len()];
@@ -502,8 +520,9 @@ pub fn search_tables(
         .collect();
         let every: Vec<usize> = (0..choices.len()).collect();
         let (_, bound) = super::hindsight::bound(clock.classes, &tallies, &every, &starts, budget);
-        let (start, start_table, start_runs, start_fig) = best;
+        let (start, table, runs, start_fig) = best;
         let start_ms_per_frame = start_fig.ms_per_frame;
+        let from = Start { table, runs };
         let all = Part::all(clock.videos.len());
         let moves = Moves {
             clock: &clock,
@@ -516,12 +535,12 @@ pub fn search_tables(
             confidence: cfg.search_confidence,
             clock_runs: cfg.clock_runs,
         };
-        let searched = moves.refine(policy, &all, &start_table, &start_runs, progress)?;
+        let searched = moves.refine(policy, &all, &from, progress)?;
         tables += searched.tables;
-        // the moves are shipped only when a search on either half of the tuning videos,
-        // from the same start, gains on the other half
+        // with the check across halves, the moves ship only when the searches on each
+        // half, from the same start, hold on the other half
         let crossfit = (cfg.search_crossfit && searched.changes > 0 && !searched.kept_start)
-            .then(|| moves.cross_fit(policy, &all, &start_table, &start_runs, progress))
+            .then(|| moves.cross_fit(policy, &all, &from, progress))
             .transpose()?;
         let Refined {
             mut table,
@@ -535,7 +554,7 @@ pub fn search_tables(
         } = searched;
         if crossfit.as_ref().is_some_and(|c| !c.holds()) {
             kept_start = true;
-            (table, runs, fig) = (start_table, start_runs, start_fig);
+            (table, runs, fig) = (from.table, from.runs, start_fig);
         }
         // the table kept, streamed in full: its evaluation figures
         set(policy, &table);
@@ -660,6 +679,12 @@ struct Moves<'c, 'a> {
     clock_runs: u32,
 }
 
+/// The table a search starts from, and every video's clock runs with it.
+struct Start {
+    table: Vec<u16>,
+    runs: Runs,
+}
+
 /// A search's moves from its start, and the table it keeps.
 struct Refined {
     table: Vec<u16>,
@@ -707,21 +732,19 @@ impl Moves<'_, '_> {
         }
     }
 
-    /// The search's moves on the videos of `part` from `start` (whose runs are
-    /// `start_runs`): one group of states at a time set to one action while that pays
+    /// The search's moves on the videos of `part` from `start`: one group of states at a time set to one action while that pays
     /// on both halves of the part, then the table they reach kept only when its gain
     /// holds over resamples of the part's videos.
     fn refine(
         &self,
         policy: &mut TrainedPolicy,
         part: &Part,
-        start: &[u16],
-        start_runs: &Runs,
+        start: &Start,
         progress: &(dyn Fn() + Sync),
     ) -> Result<Refined> {
         let clock = self.clock;
-        let states = start.len();
-        let (mut table, mut runs) = (start.to_vec(), start_runs.clone());
+        let states = start.table.len();
+        let (mut table, mut runs) = (start.table.clone(), start.runs.clone());
         let mut fig = clock.figures(&runs, part);
         let start_fig = fig.clone();
         let (mut changes, mut sweeps, mut tables) = (0usize, 0u32, 0usize);
@@ -783,15 +806,7 @@ impl Moves<'_, '_> {
                     self.set(policy, &cand);
                     tables += 1;
                     progress();
-                    let fresh = clock.stream(policy, self.k, &which, |v, arr, r| {
-                        clock.run_fig(v, arr, &r)
-                    })?;
-                    let mut cand_runs = runs.clone();
-                    for (i, rs) in fresh.into_iter().enumerate() {
-                        for (c, r) in rs {
-                            cand_runs[i][c as usize] = r;
-                        }
-                    }
+                    let cand_runs = clock.again(policy, self.k, &which, &runs)?;
                     let f = clock.figures(&cand_runs, part);
                     if pays(&f, &fig, self.budget, self.min_gain) {
                         table = cand;
@@ -821,14 +836,14 @@ impl Moves<'_, '_> {
             gain_low(
                 clock.classes,
                 &mine(&runs),
-                &mine(start_runs),
+                &mine(&start.runs),
                 self.confidence,
             )
         });
         let kept_start =
             self.confidence > 0.0 && gain_low.is_some_and(|low| low <= 0.0 || low.is_nan());
         if kept_start {
-            (table, runs, fig) = (start.to_vec(), start_runs.clone(), start_fig);
+            (table, runs, fig) = (start.table.clone(), start.runs.clone(), start_fig);
         }
         Ok(Refined {
             table,
@@ -848,8 +863,7 @@ impl Moves<'_, '_> {
         &self,
         policy: &mut TrainedPolicy,
         part: &Part,
-        start: &[u16],
-        start_runs: &Runs,
+        start: &Start,
         progress: &(dyn Fn() + Sync),
     ) -> Result<CrossFit> {
         let clock = self.clock;
@@ -861,7 +875,7 @@ impl Moves<'_, '_> {
         };
         for h in 0..2 {
             let (mine, other) = (part.half(h), part.half(1 - h));
-            let r = self.refine(policy, &mine, start, start_runs, progress)?;
+            let r = self.refine(policy, &mine, start, progress)?;
             fit.tables += r.tables;
             fit.changes[h] = r.changes;
             fit.kept_start[h] = r.changes == 0 || r.kept_start;
@@ -872,17 +886,9 @@ impl Moves<'_, '_> {
             fit.tables += 1;
             progress();
             let which = other.every_run(self.clock_runs);
-            let fresh = clock.stream(policy, self.k, &which, |v, arr, r| {
-                clock.run_fig(v, arr, &r)
-            })?;
-            let mut unseen = start_runs.clone();
-            for (i, rs) in fresh.into_iter().enumerate() {
-                for (c, r) in rs {
-                    unseen[i][c as usize] = r;
-                }
-            }
+            let unseen = clock.again(policy, self.k, &which, &start.runs)?;
             fit.gains[h] =
-                clock.sap50(&unseen, |i| other.has(i)) - clock.sap50(start_runs, |i| other.has(i));
+                clock.sap50(&unseen, |i| other.has(i)) - clock.sap50(&start.runs, |i| other.has(i));
         }
         Ok(fit)
     }
