@@ -145,9 +145,10 @@ pub struct SearchTrace {
     /// `None` without moves, and in policies searched before it was kept.
     #[serde(default)]
     pub gain_low: Option<f64>,
-    /// The moves' gain did not hold (`gain_low` ≤ 0 with a `search_confidence`): the
-    /// table kept is the start, and `sap50`, `halves_sap50` and `device_ms_per_frame`
-    /// are the start's.
+    /// The moves' gain did not hold (`gain_low` ≤ 0 with a `search_confidence`, or
+    /// the check across halves did not hold, [`SearchTrace::crossfit`]): the table
+    /// kept is the start, and `sap50`, `halves_sap50` and `device_ms_per_frame` are the
+    /// start's.
     #[serde(default)]
     pub kept_start: bool,
     /// The moves checked across halves of the tuning videos
