@@ -435,11 +435,7 @@ pub fn search_tables(
         let states = pol.policies[k].actions.len();
         let v_n = pol.variants.len();
         let mut tables = 0usize;
-        let set = |policy: &mut TrainedPolicy, table: &[u16]| {
-            if let Some(b) = policy.budget.as_mut() {
-                b.policies[k].actions = table.to_vec();
-            }
-        };
+        let all = Part::all(clock.videos.len());
         // the start: the learnt table or the best fixed schedule that keeps the budget
         let learnt = pol.policies[k].actions.clone();
         let names: Vec<String> = choices
@@ -457,11 +453,11 @@ pub fn search_tables(
             })
             .collect();
         let mut full = |policy: &mut TrainedPolicy, table: &[u16]| -> Result<(Runs, Figures)> {
-            set(policy, table);
+            set_table(policy, k, table);
             tables += 1;
             progress();
             let runs = clock.all(policy, k, cfg.clock_runs)?;
-            let fig = clock.figures(&runs, &Part::all(clock.videos.len()));
+            let fig = clock.figures(&runs, &all);
             Ok((runs, fig))
         };
         let (learnt_runs, learnt_fig) = full(policy, &learnt)?;
@@ -524,7 +520,6 @@ pub fn search_tables(
         let (start, table, runs, start_fig) = best;
         let start_ms_per_frame = start_fig.ms_per_frame;
         let from = Start { table, runs };
-        let all = Part::all(clock.videos.len());
         let moves = Moves {
             clock: &clock,
             k,
@@ -558,7 +553,7 @@ pub fn search_tables(
             (table, runs, fig) = (from.table, from.runs, start_fig);
         }
         // the table kept, streamed in full: its evaluation figures
-        set(policy, &table);
+        set_table(policy, k, &table);
         let f1 = clock.offline_f1(policy, k, cfg.clock_runs)?;
         // device ms per frame of each video over its clock runs
         let mut per_video: Vec<f64> = runs
@@ -727,12 +722,6 @@ impl CrossFit {
 }
 
 impl Moves<'_, '_> {
-    fn set(&self, policy: &mut TrainedPolicy, table: &[u16]) {
-        if let Some(b) = policy.budget.as_mut() {
-            b.policies[self.k].actions = table.to_vec();
-        }
-    }
-
     /// The search's moves on the videos of `part` from `start`: one group of states at a time set to one action while that pays
     /// on both halves of the part, then the table they reach kept only when its gain
     /// holds over resamples of the part's videos.
@@ -804,7 +793,7 @@ impl Moves<'_, '_> {
                     for &s in group {
                         cand[s] = a as u16;
                     }
-                    self.set(policy, &cand);
+                    set_table(policy, self.k, &cand);
                     tables += 1;
                     progress();
                     let cand_runs = clock.again(policy, self.k, &which, &runs)?;
@@ -883,7 +872,7 @@ impl Moves<'_, '_> {
             if fit.kept_start[h] {
                 continue;
             }
-            self.set(policy, &r.table);
+            set_table(policy, self.k, &r.table);
             fit.tables += 1;
             progress();
             let which = other.every_run(self.clock_runs);
@@ -892,6 +881,13 @@ impl Moves<'_, '_> {
                 clock.sap50(&unseen, |i| other.has(i)) - clock.sap50(&start.runs, |i| other.has(i));
         }
         Ok(fit)
+    }
+}
+
+/// Puts `table` in `policy` as budget `k`'s.
+fn set_table(policy: &mut TrainedPolicy, k: usize, table: &[u16]) {
+    if let Some(b) = policy.budget.as_mut() {
+        b.policies[k].actions = table.to_vec();
     }
 }
 
