@@ -162,7 +162,9 @@ pub struct BudgetConfig {
     /// [`BudgetConfig::search_confidence`] resamples the videos the moves were chosen
     /// on, so it cannot see that the moves were chosen to fit them; a half that did
     /// not choose them can. With fewer than four tuning videos a half cannot move and
-    /// the start is kept. About one more search's time.
+    /// the start is kept. About one more search's time. On by default: on one run's
+    /// logs, over six seeds of the simulated clock, it refused every 33 and 16 ms move
+    /// set (worth −1.3 to +1.4 sAP@0.5 points out of sample) and kept every 8 ms one.
     pub search_crossfit: bool,
     /// Streaming AP scores each frame against the latest output moved at its boxes'
     /// velocities to that frame (the runtime's [`frugal_runtime::Forecaster`], fed
@@ -272,7 +274,7 @@ impl Default for BudgetConfig {
             search_min_gain: 0.0,
             search_level: SearchLevel::Content,
             search_confidence: 0.9,
-            search_crossfit: false,
+            search_crossfit: true,
             forecast: true,
             forecast_alpha: frugal_runtime::ForecastParams::DEFAULT.alpha,
             burst: 1.5,
