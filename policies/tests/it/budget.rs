@@ -1051,6 +1051,9 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
     let (log, frames, mut pol) = trained();
     // two sweeps: enough to change states, cheap enough for a test
     pol.config.search_rounds = 2;
+    // the search and its confidence guard alone; the check across halves on top of
+    // them has its own test
+    pol.config.search_crossfit = false;
     let (mut policy, _) = bundled(&log, &pol);
     let train_videos: Vec<&VideoLog> = log.split(Split::Train).collect();
     assert!(train_videos.len() >= 2);
