@@ -157,8 +157,8 @@ pub struct BudgetConfig {
     pub search_confidence: f64,
     /// Whether the search's moves must also hold across halves of the tuning videos:
     /// the search is run again from the same start on each half alone, and the moves
-    /// are shipped only when neither half's table loses sAP@0.5 on the other half and
-    /// together they gain ([`crate::budget_eval::CrossFit`]). The resampling check of
+    /// are shipped only when the two halves' tables, each scored on the other half,
+    /// together gain sAP@0.5 ([`crate::budget_eval::CrossFit`]). The resampling check of
     /// [`BudgetConfig::search_confidence`] resamples the videos the moves were chosen
     /// on, so it cannot see that the moves were chosen to fit them; a half that did
     /// not choose them can. With fewer than four tuning videos a half cannot move and
