@@ -1254,7 +1254,7 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
 /// figures and all. The search itself is the same with the check on
 /// or off, and the check runs only on moves the resampling check let through.
 #[test]
-fn moves_ship_only_when_searches_on_either_half_gain_on_the_other() {
+fn moves_ship_only_when_the_searches_on_each_half_together_gain_on_the_other() {
     let (log, frames, mut pol) = trained();
     pol.config.search_level = SearchLevel::State;
     let thresholds = EvalConfig::default().thresholds();
