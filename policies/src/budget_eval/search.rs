@@ -1025,8 +1025,7 @@ mod tests {
     }
 
     #[test]
-    fn moves_hold_across_halves_only_when_together_they_gain_on_the_halves_that_did_not_choose_them()
-     {
+    fn moves_hold_across_halves_only_when_the_halves_gains_sum_above_zero() {
         let fit = |gains: [f64; 2]| CrossFit {
             gains,
             changes: [1, 1],

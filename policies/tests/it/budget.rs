@@ -1251,8 +1251,8 @@ fn the_search_on_the_clock_keeps_a_table_no_worse_than_the_learnt_one_or_any_fix
 /// With the cross-fit check on, the search runs again from the same start on each half
 /// of the tuning videos alone and scores its table on the other half; the moves ship
 /// only when the two tables together gain there, and otherwise the start stays, table,
-/// figures and all. The search itself is the same with the check on
-/// or off, and the check runs only on moves the resampling check let through.
+/// figures and all. The search itself is the same with the check on or off, and the
+/// check runs only on moves the resampling check let through.
 #[test]
 fn moves_ship_only_when_the_searches_on_each_half_together_gain_on_the_other() {
     let (log, frames, mut pol) = trained();
